@@ -1,0 +1,1 @@
+//! Image I/O: PNG (8/16-bit) and OpenEXR float.

@@ -1,0 +1,21 @@
+//! hairrecon-core: the types that every stage of hairrecon shares.
+//!
+//! - [`camera`]: OpenCV pinhole cameras (K, R, t) with projection and its Jacobian.
+//! - [`strands`]: strand sets stored flat (points + per-strand counts, root first).
+//! - [`mesh`]: triangle meshes, PLY/OBJ I/O, and a BVH for ray casts and closest points.
+//! - [`image_io`]: PNG (8/16-bit) and OpenEXR float images.
+//! - [`formats`]: mesh PLY/OBJ and hair files: Yuksel `.hair`, USC-HairSalon `.data`, PLY polylines, OBJ lines.
+//! - [`metric`]: the strand precision/recall/F1 metric of `docs/method.md`.
+//!
+//! Everything is validated at construction: inner loops assume finite, consistent data.
+
+pub mod camera;
+pub mod formats;
+pub mod image_io;
+pub mod mesh;
+pub mod metric;
+pub mod strands;
+
+pub use camera::{Camera, CameraError};
+pub use mesh::{Bvh, MeshError, TriMesh};
+pub use strands::{StrandError, StrandSet};
