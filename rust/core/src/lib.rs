@@ -1,5 +1,6 @@
 //! hairrecon-core: the types that every stage of hairrecon shares.
 //!
+//! - [`capture`]: capture folders (capture.json + images, masks, meshes), validated on load.
 //! - [`camera`]: OpenCV pinhole cameras (K, R, t) with projection and its Jacobian.
 //! - [`strands`]: strand sets stored flat (points + per-strand counts, root first).
 //! - [`mesh`]: triangle meshes, PLY/OBJ I/O, and a BVH for ray casts and closest points.
@@ -10,6 +11,7 @@
 //! Everything is validated at construction: inner loops assume finite, consistent data.
 
 pub mod camera;
+pub mod capture;
 pub mod formats;
 pub mod image_io;
 pub mod mesh;
