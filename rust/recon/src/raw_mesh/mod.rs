@@ -1,0 +1,1 @@
+//! Raw mesh fusion (not built yet).
