@@ -16,6 +16,7 @@ pub mod formats;
 pub mod image_io;
 pub mod mesh;
 pub mod metric;
+pub mod scalp;
 pub mod strands;
 
 pub use camera::{Camera, CameraError};
