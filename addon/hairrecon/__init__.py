@@ -1,0 +1,23 @@
+"""hairrecon for Blender: reconstruct hair strands from calibrated photos of a head.
+
+An extension (Blender 4.2+). The reconstruction itself is the Rust library ``hairrecon``, bundled
+as an abi3 wheel (see blender_manifest.toml); this package holds the Blender side:
+
+- ``core/``: bpy-free camera maths, capture writing and surface attachment (unit-testable),
+- ``scene_read`` / ``scene_build``: scene -> numpy, numpy -> Curves/meshes/cameras,
+- ``session``: one run (capture, job, result), ``operators``, ``props``, ``ui``.
+"""
+
+from . import operators, props, ui
+
+_MODULES = (props, operators, ui)
+
+
+def register():
+    for m in _MODULES:
+        m.register()
+
+
+def unregister():
+    for m in reversed(_MODULES):
+        m.unregister()

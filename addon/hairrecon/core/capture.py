@@ -1,0 +1,267 @@
+"""Writing a capture folder (rust/core/src/capture.rs) from data taken out of a Blender scene.
+
+The Blender layer gathers, per camera, a :class:`~.camera.PinholeCamera` and the photo's pixels, and
+per mesh its world-space vertices and triangles; this module checks them, writes PNGs and
+``capture.json``, and phrases every problem as one :class:`CaptureInputError` that names the camera,
+object or file and says how to fix it. Meshes are written by a callback (``hairrecon.write_mesh``) so
+that this module needs neither bpy nor the Rust library.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import struct
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Optional, Sequence
+
+import numpy as np
+
+from .camera import PinholeCamera, rescale
+
+CAPTURE_VERSION = 1
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".bmp", ".webp")
+
+
+class CaptureInputError(ValueError):
+    """The scene cannot be turned into a capture; the message says what and how to fix it."""
+
+
+# --- images -------------------------------------------------------------------------------------
+
+
+def write_png(path: os.PathLike | str, pixels: np.ndarray) -> None:
+    """Writes an 8-bit PNG from a (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8 array, top row first."""
+    a = np.asarray(pixels)
+    if a.dtype != np.uint8:
+        raise TypeError(f"write_png needs uint8 pixels, got {a.dtype}")
+    if a.ndim == 2:
+        a = a[:, :, None]
+    h, w, c = a.shape
+    color_type = {1: 0, 2: 4, 3: 2, 4: 6}[c]
+    raw = np.concatenate([np.zeros((h, 1), np.uint8), a.reshape(h, w * c)], axis=1).tobytes()
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", w, h, 8, color_type, 0, 0, 0)
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+
+
+def png_size(path: os.PathLike | str) -> Optional[tuple[int, int]]:
+    """(width, height) of a PNG file from its header, or None if it is not a PNG."""
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    return struct.unpack(">II", head[16:24])
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def pixels_to_uint8(flat_rgba: np.ndarray, width: int, height: int, linear: bool, channels: int = 4) -> np.ndarray:
+    """Blender ``Image.pixels`` (float RGBA, bottom row first) -> uint8 (H, W, C) top row first.
+    ``linear`` images (float buffers) are encoded to sRGB; byte images are stored as they are."""
+    a = np.asarray(flat_rgba, dtype=np.float32).reshape(height, width, 4)[::-1, :, :channels]
+    if linear:
+        a = a.copy()
+        a[..., :3] = linear_to_srgb(a[..., :3])
+    return (np.clip(a, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def find_file_by_name(folder: os.PathLike | str, names: Iterable[str], extensions=IMAGE_EXTENSIONS) -> Optional[Path]:
+    """The file in ``folder`` whose name without extension equals one of ``names`` (case-insensitive),
+    trying the names in order; None when none matches."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return None
+    by_stem: dict[str, Path] = {}
+    for p in sorted(folder.iterdir()):
+        if p.is_file() and p.suffix.lower() in extensions:
+            by_stem.setdefault(p.stem.lower(), p)
+    for n in names:
+        if n and n.lower() in by_stem:
+            return by_stem[n.lower()]
+    return None
+
+
+def safe_file_stem(name: str) -> str:
+    """A file name for a view name (camera names may hold '/', ':' ...)."""
+    s = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
+    return s or "view"
+
+
+# --- meshes -------------------------------------------------------------------------------------
+
+
+@dataclass
+class MeshData:
+    """A triangle mesh in world space; ``uvs`` per vertex (seams already split) or None."""
+
+    name: str
+    vertices: np.ndarray  # (V, 3) float32
+    triangles: np.ndarray  # (T, 3) uint32
+    uvs: Optional[np.ndarray] = None  # (V, 2) float32
+
+
+def check_mesh(mesh: MeshData, role: str) -> None:
+    """Raises CaptureInputError when a mesh cannot serve as ``role`` (e.g. 'raw mesh')."""
+    if len(mesh.vertices) == 0 or len(mesh.triangles) == 0:
+        raise CaptureInputError(
+            f"the {role} object {mesh.name!r} has no faces ({len(mesh.vertices)} vertices, "
+            f"{len(mesh.triangles)} triangles); pick a mesh with a surface"
+        )
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise CaptureInputError(f"the {role} object {mesh.name!r} has vertices that are not finite numbers")
+
+
+def split_uv_seams(
+    positions: np.ndarray, tri_loops: np.ndarray, loop_vertex: np.ndarray, loop_uv: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-loop UVs -> per-vertex UVs by duplicating vertices on UV seams.
+
+    positions (V, 3); tri_loops (T, 3) loop indices of each triangle; loop_vertex (L,) vertex of each
+    loop; loop_uv (L, 2). Returns (vertices (V', 3), triangles (T, 3), uvs (V', 2)).
+    """
+    key = np.concatenate([loop_vertex[:, None].astype(np.float64), np.round(loop_uv.astype(np.float64), 7)], axis=1)
+    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    verts = positions[uniq[:, 0].astype(np.int64)].astype(np.float32)
+    uvs = uniq[:, 1:].astype(np.float32)
+    tris = inverse[tri_loops].astype(np.uint32)
+    return verts, tris, uvs
+
+
+def submesh(mesh: MeshData, keep_vertex: np.ndarray, name: str) -> MeshData:
+    """The triangles whose three vertices are kept, with unused vertices dropped."""
+    keep_tri = keep_vertex[mesh.triangles].all(axis=1)
+    tris = mesh.triangles[keep_tri]
+    used = np.unique(tris)
+    remap = np.full(len(mesh.vertices), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    return MeshData(
+        name=name,
+        vertices=mesh.vertices[used],
+        triangles=remap[tris].astype(np.uint32),
+        uvs=None if mesh.uvs is None else mesh.uvs[used],
+    )
+
+
+# --- the capture --------------------------------------------------------------------------------
+
+
+@dataclass
+class ViewInput:
+    """One camera with its photo (and optional mask) as uint8 pixels (H, W, C), top row first.
+    When the photo is not at the render size, it must have the same aspect ratio; K is rescaled."""
+
+    name: str
+    camera: PinholeCamera
+    photo: Optional[np.ndarray]
+    mask: Optional[np.ndarray] = None
+    photo_source: str = ""  # where the photo came from, for messages
+
+
+def check_views(views: Sequence[ViewInput]) -> None:
+    if not views:
+        raise CaptureInputError("there are no cameras: put the calibrated cameras in the Cameras collection")
+    seen = set()
+    for v in views:
+        if v.photo is None:
+            raise CaptureInputError(
+                f"camera {v.name!r} has no photo: give it a background image (Camera Properties > "
+                "Background Images) or put a file named after the camera in the Photos folder"
+            )
+        key = safe_file_stem(v.name).lower()
+        if key in seen:
+            raise CaptureInputError(f"two cameras have the file name {key!r}; rename one of them")
+        seen.add(key)
+
+
+def _fit_camera(v: ViewInput, h: int, w: int, what: str) -> PinholeCamera:
+    try:
+        return rescale(v.camera, w, h)
+    except ValueError:
+        raise CaptureInputError(
+            f"camera {v.name!r}: its {what} {v.photo_source or ''} is {w}x{h} pixels, which does not have the "
+            f"aspect ratio of the render resolution {v.camera.width}x{v.camera.height}; set Output Properties > "
+            "Format > Resolution to the photo's size"
+        ) from None
+
+
+def write_capture(
+    directory: os.PathLike | str,
+    views: Sequence[ViewInput],
+    raw_mesh: MeshData,
+    write_mesh: Callable[..., None],
+    head_mesh: Optional[MeshData] = None,
+    scalp_mesh: Optional[MeshData] = None,
+) -> Path:
+    """Writes ``directory/capture.json`` with images/, masks/ and the meshes; returns its path.
+
+    ``write_mesh(path, vertices, triangles, uvs=None)`` writes a mesh file (``hairrecon.write_mesh``).
+    """
+    check_views(views)
+    check_mesh(raw_mesh, "raw mesh")
+    if head_mesh is not None:
+        check_mesh(head_mesh, "head mesh")
+    if scalp_mesh is not None:
+        check_mesh(scalp_mesh, "scalp")
+    d = Path(directory)
+    (d / "images").mkdir(parents=True, exist_ok=True)
+    entries = []
+    for v in views:
+        h, w = v.photo.shape[:2]
+        cam = _fit_camera(v, h, w, "photo")
+        stem = safe_file_stem(v.name)
+        entry = {"name": v.name, "image": f"images/{stem}.png"}
+        write_png(d / entry["image"], v.photo)
+        if v.mask is not None:
+            mh, mw = v.mask.shape[:2]
+            if (mw, mh) != (w, h):
+                raise CaptureInputError(
+                    f"camera {v.name!r}: its mask is {mw}x{mh} pixels but its photo is {w}x{h}; "
+                    "masks must have the size of their photos"
+                )
+            (d / "masks").mkdir(exist_ok=True)
+            entry["mask"] = f"masks/{stem}.png"
+            write_png(d / entry["mask"], v.mask)
+        entry.update(cam.to_json())
+        entries.append(entry)
+    spec = {"version": CAPTURE_VERSION, "units": "metres", "convention": "opencv", "views": entries}
+    for key, mesh, fname in (
+        ("raw_mesh", raw_mesh, "raw_mesh.ply"),
+        ("head_mesh", head_mesh, "head.ply"),
+        ("scalp_mesh", scalp_mesh, "scalp.ply"),
+    ):
+        if mesh is None:
+            continue
+        write_mesh(
+            str(d / fname),
+            np.ascontiguousarray(mesh.vertices, dtype=np.float32),
+            np.ascontiguousarray(mesh.triangles, dtype=np.uint32),
+            uvs=None if mesh.uvs is None else np.ascontiguousarray(mesh.uvs, dtype=np.float32),
+        )
+        spec[key] = fname
+    path = d / "capture.json"
+    path.write_text(json.dumps(spec, indent=1))
+    return path
+
+
+def read_capture_json(directory: os.PathLike | str) -> dict:
+    """capture.json of a capture folder as a dict, with clear errors (validation is the library's)."""
+    d = Path(directory)
+    path = d / "capture.json" if d.is_dir() else d
+    if not path.is_file():
+        raise CaptureInputError(f"{path} does not exist; choose a capture folder (one with a capture.json)")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise CaptureInputError(f"{path} is not valid JSON: {e}") from None

@@ -1,0 +1,79 @@
+"""Attaching strands to a scalp surface: UV maps and barycentric interpolation (numpy only).
+
+Blender's hair tools and the "Attach Hair Curves to Surface" node find each curve's root on its
+surface mesh through a UV coordinate (the ``surface_uv_coordinate`` attribute) in the surface's UV
+map. The Blender layer finds the closest surface point of each root (mathutils BVHTree); this module
+turns that point and its triangle into a UV, and makes a UV map for a scalp that has none.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Barycentric weights (N, 3) of points p (N, 3) in triangles (a, b, c) (each (N, 3)); points off
+    the plane are projected onto it. Degenerate triangles give (1, 0, 0)."""
+    v0, v1, v2 = b - a, c - a, p - a
+    d00 = np.einsum("ij,ij->i", v0, v0)
+    d01 = np.einsum("ij,ij->i", v0, v1)
+    d11 = np.einsum("ij,ij->i", v1, v1)
+    d20 = np.einsum("ij,ij->i", v2, v0)
+    d21 = np.einsum("ij,ij->i", v2, v1)
+    den = d00 * d11 - d01 * d01
+    ok = np.abs(den) > 1e-30
+    safe = np.where(ok, den, 1.0)
+    v = np.where(ok, (d11 * d20 - d01 * d21) / safe, 0.0)
+    w = np.where(ok, (d00 * d21 - d01 * d20) / safe, 0.0)
+    return np.stack([1.0 - v - w, v, w], axis=1)
+
+
+def interpolate_uv(points: np.ndarray, tri_corners: np.ndarray, tri_uvs: np.ndarray) -> np.ndarray:
+    """UVs (N, 2) of points (N, 3) lying on triangles with corners (N, 3, 3) and corner UVs (N, 3, 2)."""
+    w = barycentric(points, tri_corners[:, 0], tri_corners[:, 1], tri_corners[:, 2])
+    w = np.clip(w, 0.0, None)
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-30)
+    return np.einsum("nk,nkj->nj", w, tri_uvs)
+
+
+def fit_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares sphere (centre, radius) through points (N, 3), N >= 4 not coplanar."""
+    p = np.asarray(points, dtype=np.float64)
+    A = np.concatenate([2.0 * p, np.ones((len(p), 1))], axis=1)
+    b = (p * p).sum(axis=1)
+    x, *_ = np.linalg.lstsq(A, b, rcond=None)
+    centre = x[:3]
+    r2 = x[3] + centre @ centre
+    return centre, float(np.sqrt(max(r2, 0.0)))
+
+
+def azimuthal_uv(points: np.ndarray, centre: np.ndarray, pole: np.ndarray) -> np.ndarray:
+    """A seamless UV map of a scalp-like cap: the azimuthal equidistant projection of each point's
+    direction from ``centre`` about ``pole`` (unit vector through the top of the cap). The pole maps
+    to (0.5, 0.5); a direction at angle theta from the pole lies at radius theta / (2 pi), so the whole
+    sphere fits in [0, 1]^2 and a cap smaller than a hemisphere sits within radius 0.25."""
+    pole = np.asarray(pole, dtype=np.float64)
+    pole = pole / np.linalg.norm(pole)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(pole[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = ref - pole * (ref @ pole)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(pole, e1)
+    d = np.asarray(points, dtype=np.float64) - centre
+    d /= np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+    theta = np.arccos(np.clip(d @ pole, -1.0, 1.0))
+    phi = np.arctan2(d @ e2, d @ e1)
+    r = theta / (2.0 * np.pi)
+    return np.stack([0.5 + r * np.cos(phi), 0.5 + r * np.sin(phi)], axis=1).astype(np.float32)
+
+
+def scalp_uv(points: np.ndarray) -> np.ndarray:
+    """UVs (N, 2) for scalp vertices without a UV map: sphere fit, pole through the cap's mean."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) >= 4:
+        centre, _ = fit_sphere(p)
+    else:
+        centre = p.mean(axis=0) - np.array([0.0, 0.0, 0.1])
+    pole = p.mean(axis=0) - centre
+    if not np.all(np.isfinite(pole)) or np.linalg.norm(pole) < 1e-9:
+        pole = np.array([0.0, 0.0, 1.0])
+    return azimuthal_uv(p, centre, pole)

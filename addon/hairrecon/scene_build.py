@@ -1,0 +1,231 @@
+"""Building Blender data from results: hair Curves attached to a scalp, and scenes from captures.
+
+Everything here creates new datablocks; callers remove them again (``remove_created``) when a
+later step fails, so the scene is left as it was.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import bpy
+import numpy as np
+from mathutils import Matrix
+from mathutils.bvhtree import BVHTree
+
+from .core.camera import PinholeCamera, blender_from_opencv
+from .core.surface import interpolate_uv, scalp_uv
+
+HAIR_UV_MAP = "hairrecon_uv"
+
+
+class Created:
+    """Datablocks made by one step, removed again by :meth:`remove` if the step fails."""
+
+    def __init__(self):
+        self.items: list = []
+
+    def add(self, datablock):
+        self.items.append(datablock)
+        return datablock
+
+    def remove(self):
+        for db in reversed(self.items):
+            try:
+                coll = {
+                    bpy.types.Object: bpy.data.objects,
+                    bpy.types.Curves: bpy.data.hair_curves,
+                    bpy.types.Mesh: bpy.data.meshes,
+                    bpy.types.Material: bpy.data.materials,
+                    bpy.types.Camera: bpy.data.cameras,
+                    bpy.types.Image: bpy.data.images,
+                    bpy.types.Collection: bpy.data.collections,
+                }[type(db)]
+                coll.remove(db)
+            except (KeyError, ReferenceError, RuntimeError):
+                pass
+        self.items.clear()
+
+
+# --- surfaces -----------------------------------------------------------------------------------
+
+
+def surface_triangles(obj: bpy.types.Object):
+    """Surface-local corner positions (T, 3, 3) and corner UVs (T, 3, 2) of the original mesh's loop
+    triangles in its active UV map (the map Blender's hair attachment uses)."""
+    me = obj.data
+    me.calc_loop_triangles()
+    nt = len(me.loop_triangles)
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    tri_v = np.empty(nt * 3, np.int32)
+    me.loop_triangles.foreach_get("vertices", tri_v)
+    tri_l = np.empty(nt * 3, np.int32)
+    me.loop_triangles.foreach_get("loops", tri_l)
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers.active.uv.foreach_get("vector", uv)
+    return co.reshape(-1, 3), tri_v.reshape(-1, 3), uv.reshape(-1, 2)[tri_l.reshape(-1, 3)]
+
+
+def ensure_uv_map(obj: bpy.types.Object, group_name: Optional[str] = None) -> str:
+    """The name of the surface's active UV map; adds ``hairrecon_uv`` (a seamless projection of the
+    scalp, :func:`core.surface.scalp_uv`) when the mesh has none. Returns the map's name."""
+    me = obj.data
+    if me.uv_layers.active is not None:
+        return me.uv_layers.active.name
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    keep = np.ones(len(co), bool)
+    if group_name:
+        from .scene_read import vertex_group_mask
+
+        keep = vertex_group_mask(obj, group_name)
+    uv_v = np.zeros((len(co), 2), np.float32)
+    uv_v[keep] = scalp_uv(co[keep])
+    loop_v = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", loop_v)
+    layer = me.uv_layers.new(name=HAIR_UV_MAP)
+    layer.uv.foreach_set("vector", uv_v[loop_v].ravel())
+    me.uv_layers.active = layer
+    return layer.name
+
+
+def attach(points_local: np.ndarray, counts: np.ndarray, surface: bpy.types.Object):
+    """For each strand root (surface-local): (uv (S,2), distance to the surface (S,), closest point
+    (S,3)). The UV is that of the closest point on the surface mesh, in its active UV map."""
+    co, tri_v, tri_uv = surface_triangles(surface)
+    bvh = BVHTree.FromPolygons([tuple(p) for p in co], [tuple(t) for t in tri_v], all_triangles=True)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    roots = points_local[starts]
+    n = len(roots)
+    loc = np.zeros((n, 3))
+    tri = np.zeros(n, np.int64)
+    dist = np.full(n, np.inf)
+    find = bvh.find_nearest
+    for i, r in enumerate(roots.tolist()):
+        hit = find(r)
+        if hit[0] is not None:
+            loc[i] = hit[0]
+            tri[i] = hit[2]
+            dist[i] = hit[3]
+    uv = interpolate_uv(loc, co[tri_v[tri]].astype(np.float64), tri_uv[tri].astype(np.float64))
+    return uv.astype(np.float32), dist, loc
+
+
+# --- hair curves --------------------------------------------------------------------------------
+
+
+def hair_material(name: str = "Hair") -> bpy.types.Material:
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    bsdf = nt.nodes.new("ShaderNodeBsdfHairPrincipled")
+    bsdf.location = (-300, 0)
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    if "Melanin" in bsdf.inputs:
+        bsdf.inputs["Melanin"].default_value = 0.6
+    return mat
+
+
+def new_hair_curves(
+    name: str,
+    points_local: np.ndarray,
+    counts: np.ndarray,
+    root_radius: float,
+    tip_radius: float,
+) -> bpy.types.Curves:
+    """A Curves datablock with the strands (surface-local positions) and a tapering radius."""
+    cv = bpy.data.hair_curves.new(name)
+    counts = np.asarray(counts, dtype=np.int64)
+    cv.add_curves([int(c) for c in counts])
+    cv.attributes["position"].data.foreach_set("vector", np.ascontiguousarray(points_local, np.float32).ravel())
+    # radius tapers linearly from root to tip along each strand's point index
+    starts = np.repeat(np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    idx = np.arange(len(points_local)) - starts
+    denom = np.repeat(np.maximum(counts - 1, 1), counts)
+    s = idx / denom
+    radius = (root_radius + (tip_radius - root_radius) * s).astype(np.float32)
+    attr = cv.attributes.get("radius") or cv.attributes.new("radius", "FLOAT", "POINT")
+    attr.data.foreach_set("value", radius)
+    return cv
+
+
+def add_hair_object(
+    context,
+    created: Created,
+    name: str,
+    points_world: np.ndarray,
+    counts: np.ndarray,
+    surface: bpy.types.Object,
+    material: bpy.types.Material,
+    root_radius: float = 4e-5,
+    tip_radius: float = 1e-5,
+) -> tuple[bpy.types.Object, np.ndarray]:
+    """A hair Curves object parented to ``surface``, in its local space, with ``surface``,
+    ``surface_uv_map`` and ``surface_uv_coordinate`` set. Returns the object and root distances (m)."""
+    m = np.array(surface.matrix_world, dtype=np.float64)
+    inv = np.linalg.inv(m)
+    local = (np.asarray(points_world, np.float64) @ inv[:3, :3].T + inv[:3, 3]).astype(np.float32)
+    cv = created.add(new_hair_curves(name, local, counts, root_radius, tip_radius))
+    uv, dist_local, _ = attach(local, counts, surface)
+    cv.surface = surface
+    cv.surface_uv_map = surface.data.uv_layers.active.name
+    a = cv.attributes.get("surface_uv_coordinate") or cv.attributes.new("surface_uv_coordinate", "FLOAT2", "CURVE")
+    a.data.foreach_set("vector", uv.ravel())
+    cv.materials.append(material)
+    obj = created.add(bpy.data.objects.new(name, cv))
+    collection = surface.users_collection[0] if surface.users_collection else context.scene.collection
+    collection.objects.link(obj)
+    obj.parent = surface
+    obj.matrix_parent_inverse = Matrix.Identity(4)
+    # distances in world units (the surface may be scaled)
+    scale = float(np.cbrt(abs(np.linalg.det(m[:3, :3]))))
+    return obj, dist_local * scale
+
+
+# --- scenes from captures -----------------------------------------------------------------------
+
+
+def mesh_object(created: Created, collection, name: str, vertices, triangles, uvs=None) -> bpy.types.Object:
+    v = np.asarray(vertices, np.float32)
+    t = np.asarray(triangles, np.int32)
+    me = created.add(bpy.data.meshes.new(name))
+    me.vertices.add(len(v))
+    me.vertices.foreach_set("co", v.ravel())
+    me.loops.add(t.size)
+    me.loops.foreach_set("vertex_index", t.ravel())
+    me.polygons.add(len(t))
+    me.polygons.foreach_set("loop_start", np.arange(0, t.size, 3, dtype=np.int32))
+    me.update(calc_edges=True)
+    if uvs is not None:
+        layer = me.uv_layers.new(name="UVMap")
+        layer.uv.foreach_set("vector", np.asarray(uvs, np.float32)[t.ravel()].ravel())
+    me.validate()
+    obj = created.add(bpy.data.objects.new(name, me))
+    collection.objects.link(obj)
+    return obj
+
+
+def camera_object(created: Created, collection, name: str, cam: PinholeCamera, photo_path: Optional[Path]):
+    s = blender_from_opencv(cam)
+    data = created.add(bpy.data.cameras.new(name))
+    data.lens = s.lens
+    data.sensor_width = s.sensor_width
+    data.sensor_fit = s.sensor_fit
+    data.shift_x = s.shift_x
+    data.shift_y = s.shift_y
+    data.clip_start = 0.01
+    obj = created.add(bpy.data.objects.new(name, data))
+    obj.matrix_world = Matrix([list(r) for r in s.matrix_world])
+    collection.objects.link(obj)
+    if photo_path is not None:
+        img = created.add(bpy.data.images.load(str(photo_path), check_existing=False))
+        bg = data.background_images.new()
+        bg.image = img
+        data.show_background_images = True
+    return obj, s

@@ -1,0 +1,83 @@
+"""The Hair tab of the 3D viewport's sidebar."""
+
+from __future__ import annotations
+
+import bpy
+
+
+class HAIRRECON_PT_reconstruct(bpy.types.Panel):
+    bl_label = "Hair Reconstruction"
+    bl_idname = "HAIRRECON_PT_reconstruct"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Hair"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.hairrecon
+        wm = context.window_manager
+
+        col = layout.column(heading="Input")
+        col.prop(s, "camera_collection")
+        col.prop(s, "photo_folder")
+        col.prop(s, "mask_folder")
+        col.prop(s, "raw_mesh")
+
+        col = layout.column()
+        col.prop(s, "scalp_source")
+        if s.scalp_source == "OBJECT":
+            col.prop(s, "scalp_object")
+        else:
+            col.prop(s, "head_object")
+            if s.head_object is not None:
+                col.prop_search(s, "scalp_vertex_group", s.head_object, "vertex_groups")
+            else:
+                col.prop(s, "scalp_vertex_group")
+
+        col = layout.column()
+        col.prop(s, "quality")
+        sub = col.column(align=True)
+        sub.prop(s, "guides")
+        sub.prop(s, "children")
+        sub.prop(s, "iterations")
+
+        layout.separator()
+        if wm.hairrecon_running:
+            layout.progress(factor=wm.hairrecon_progress, type="BAR", text=wm.hairrecon_status or "Running")
+            layout.label(text="Press Esc in the viewport to cancel", icon="INFO")
+        else:
+            layout.operator("hairrecon.reconstruct", icon="CURVES")
+        row = layout.row(align=True)
+        row.operator("hairrecon.import_capture", text="Import Capture", icon="IMPORT")
+        row.operator("hairrecon.export_hair", text="Export Hair", icon="EXPORT")
+
+
+class HAIRRECON_PT_advanced(bpy.types.Panel):
+    bl_label = "Advanced"
+    bl_parent_id = "HAIRRECON_PT_reconstruct"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Hair"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        s = context.scene.hairrecon
+        layout.prop(s, "seed")
+        layout.prop(s, "stop_after")
+
+
+CLASSES = (HAIRRECON_PT_reconstruct, HAIRRECON_PT_advanced)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
