@@ -1,20 +1,99 @@
-//! `hairrecon eval`, `convert` and `info`.
+//! `hairrecon eval`, `convert` and `info`: the strand metric and strand file tools.
+
+use std::path::PathBuf;
+
+use hairrecon_core::formats::{read_strands, write_strands};
+use hairrecon_core::metric::{evaluate, MetricOptions};
 
 use crate::CmdResult;
 
 #[derive(Debug, clap::Args)]
-pub struct EvalArgs {}
-#[derive(Debug, clap::Args)]
-pub struct ConvertArgs {}
-#[derive(Debug, clap::Args)]
-pub struct InfoArgs {}
+pub struct EvalArgs {
+    /// Predicted strands (.hair, .data, .ply or .obj), in metres.
+    #[arg(long)]
+    pred: PathBuf,
+    /// Ground-truth strands, in metres.
+    #[arg(long)]
+    gt: PathBuf,
+    /// Arc-length resampling step in millimetres.
+    #[arg(long, default_value_t = 1.0)]
+    step_mm: f32,
+    /// Print exactly one JSON object on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
+}
 
-pub fn eval(_a: EvalArgs) -> CmdResult {
-    Err("not built yet".into())
+#[derive(Debug, clap::Args)]
+pub struct ConvertArgs {
+    /// Input strand file (.hair, .data, .ply, .obj).
+    input: PathBuf,
+    /// Output strand file; the format follows the extension.
+    output: PathBuf,
+    /// Multiply every coordinate by this factor (e.g. 0.01 for centimetres to metres).
+    #[arg(long, default_value_t = 1.0)]
+    scale: f32,
 }
-pub fn convert(_a: ConvertArgs) -> CmdResult {
-    Err("not built yet".into())
+
+#[derive(Debug, clap::Args)]
+pub struct InfoArgs {
+    /// Strand file (.hair, .data, .ply, .obj).
+    file: PathBuf,
 }
-pub fn info(_a: InfoArgs) -> CmdResult {
-    Err("not built yet".into())
+
+pub fn eval(a: EvalArgs) -> CmdResult {
+    if !(a.step_mm.is_finite() && a.step_mm > 0.0) {
+        return Err(format!("--step-mm must be a positive number of millimetres, got {}", a.step_mm).into());
+    }
+    let pred = read_strands(&a.pred)?;
+    let gt = read_strands(&a.gt)?;
+    let opts = MetricOptions { step: a.step_mm * 1e-3, ..MetricOptions::default() };
+    let report = evaluate(&pred, &gt, &opts)?;
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        println!(
+            "pred: {} ({} strands)   gt: {} ({} strands)",
+            a.pred.display(),
+            pred.num_strands(),
+            a.gt.display(),
+            gt.num_strands()
+        );
+        print!("{}", report.table());
+    }
+    Ok(())
+}
+
+pub fn convert(a: ConvertArgs) -> CmdResult {
+    if !(a.scale.is_finite() && a.scale != 0.0) {
+        return Err(format!("--scale must be a finite non-zero number, got {}", a.scale).into());
+    }
+    let s = read_strands(&a.input)?;
+    let s = if a.scale == 1.0 { s } else { s.map_points(|p| p * a.scale)? };
+    write_strands(&a.output, &s)?;
+    eprintln!("wrote {} strands, {} points to {}", s.num_strands(), s.num_points(), a.output.display());
+    Ok(())
+}
+
+pub fn info(a: InfoArgs) -> CmdResult {
+    let s = read_strands(&a.file)?;
+    println!("file:     {}", a.file.display());
+    println!("strands:  {}", s.num_strands());
+    println!("points:   {}", s.num_points());
+    if let (Some(st), Some((lo, hi))) = (s.length_stats(), s.bbox()) {
+        let c = s.counts();
+        let (cmin, cmax) = (c.iter().min().copied().unwrap_or(0), c.iter().max().copied().unwrap_or(0));
+        println!(
+            "points per strand: min {cmin}, max {cmax}, mean {:.1}",
+            s.num_points() as f64 / s.num_strands() as f64
+        );
+        println!(
+            "length:   min {:.4}, median {:.4}, mean {:.4}, max {:.4}, total {:.2}",
+            st.min, st.median, st.mean, st.max, st.total
+        );
+        println!("bbox min: [{:.4}, {:.4}, {:.4}]", lo.x, lo.y, lo.z);
+        println!("bbox max: [{:.4}, {:.4}, {:.4}]", hi.x, hi.y, hi.z);
+        let size = hi - lo;
+        println!("size:     [{:.4}, {:.4}, {:.4}]", size.x, size.y, size.z);
+    }
+    Ok(())
 }

@@ -1,0 +1,7 @@
+//! `hairrecon.Reconstruction` and `hairrecon.reconstruct` (added when the pipeline lands).
+
+use pyo3::prelude::*;
+
+pub fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+    Ok(())
+}

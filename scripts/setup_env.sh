@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Sets up everything hairrecon needs on a fresh machine, idempotently:
+#   - .venv/ (Python 3.11) with bpy, numpy, maturin, pytest (requirements-dev.txt);
+#   - the release build of the `hairrecon` CLI (target/release/hairrecon);
+#   - the Python module `hairrecon` built by maturin into .venv.
+# Needs: a Rust toolchain (cargo) and CPython 3.11 with venv and pip.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+
+PY=${PYTHON:-}
+if [ -z "$PY" ]; then
+  for cand in python3.11 python3; do
+    if command -v "$cand" >/dev/null 2>&1 && "$cand" -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)'; then
+      PY=$cand; break
+    fi
+  done
+fi
+if [ -z "$PY" ]; then
+  echo "setup: error: Python 3.11 is needed (bpy 5.0 is built for 3.11); install it or set PYTHON=/path/to/python3.11" >&2
+  exit 1
+fi
+command -v cargo >/dev/null 2>&1 || { echo "setup: error: cargo not found; install Rust (rustup) first" >&2; exit 1; }
+
+if [ ! -x .venv/bin/python ]; then
+  echo "setup: creating .venv with $PY"
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.requirements.sha
+want=$(sha256sum requirements-dev.txt | cut -d' ' -f1)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  echo "setup: installing Python packages (requirements-dev.txt)"
+  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet -r requirements-dev.txt
+  echo "$want" > "$stamp"
+fi
+
+echo "setup: building the hairrecon CLI (release)"
+cargo build --release --quiet -p hairrecon-cli
+
+echo "setup: building the Python module into .venv (maturin, release)"
+VIRTUAL_ENV="$ROOT/.venv" PATH="$ROOT/.venv/bin:$PATH" \
+  .venv/bin/maturin develop --release --quiet -m rust/python/Cargo.toml >/dev/null
+.venv/bin/python -c 'import hairrecon, bpy; print("setup: ok (hairrecon", hairrecon.__version__ + ", bpy", bpy.app.version_string + ")")'
