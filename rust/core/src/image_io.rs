@@ -1,1 +1,329 @@
-//! Image I/O: PNG (8/16-bit) and OpenEXR float.
+//! Image I/O: PNG (8/16-bit) and OpenEXR float images as row-major `f32` buffers.
+//!
+//! References: PNG, W3C Recommendation "Portable Network Graphics (PNG) Specification (Third
+//! Edition)" (<https://www.w3.org/TR/png-3/>), decoded and encoded with the `image` crate; OpenEXR,
+//! "OpenEXR File Layout" (<https://openexr.com/en/latest/OpenEXRFileLayout.html>), read and written
+//! with the `exr` crate (which, unlike `image`'s EXR codec, reads files without R, G and B channels).
+//!
+//! The file type is taken from the file's first bytes, not its name. Values:
+//! - PNG: 8-bit samples are divided by 255 and 16-bit samples by 65,535, so they lie in `[0, 1]`.
+//!   [`read_gray_f32`] of a colour PNG gives Rec. 709 luminance; alpha is dropped.
+//! - EXR (first layer, largest resolution, half/float/uint samples as `f32`, unchanged): EXRs hold
+//!   data (depth, orientation) more often than pictures, so [`read_gray_f32`] takes a channel, never
+//!   a mix: the only channel of a one-channel file, else `Y` (luminance), else `R`.
+//!   [`read_rgb_f32`] takes `R`, `G`, `B`, or repeats the gray channel of a gray file.
+//!
+//! Writers quantise to PNG with rounding after clamping to `[0, 1]`, write EXR as 32-bit float with
+//! lossless ZIP compression (channel `Y` for gray, `R G B` for colour), and go through
+//! [`crate::formats::atomic_write`]. Every error names the file and says what is wrong.
+
+use std::io::Cursor as IoCursor;
+use std::path::Path;
+
+use crate::formats::{atomic_write, read_file, FormatError, FormatErrorKind, Result};
+
+/// A one-channel float image, row-major (`data[y * width + x]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GrayImage32 {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+/// A three-channel float image, row-major and interleaved (`data[3 * (y * width + x) + c]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage32 {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+fn invalid(msg: String) -> FormatError {
+    FormatErrorKind::Invalid(msg).into()
+}
+
+fn check_size(width: u32, height: u32, channels: usize, len: usize) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(invalid(format!("an image must be at least 1x1 pixels, got {width}x{height}")));
+    }
+    let expected = width as u64 * height as u64 * channels as u64;
+    if expected != len as u64 {
+        return Err(invalid(format!(
+            "a {width}x{height} image with {channels} channel(s) needs {expected} values but {len} were given"
+        )));
+    }
+    Ok(())
+}
+
+impl GrayImage32 {
+    /// Builds an image, checking that `data` has `width * height` values.
+    pub fn new(width: u32, height: u32, data: Vec<f32>) -> Result<Self> {
+        check_size(width, height, 1, data.len())?;
+        Ok(Self { width, height, data })
+    }
+
+    /// An image filled with `value`.
+    pub fn filled(width: u32, height: u32, value: f32) -> Self {
+        Self { width, height, data: vec![value; width as usize * height as usize] }
+    }
+
+    /// The value at pixel `(x, y)`.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> f32 {
+        self.data[y as usize * self.width as usize + x as usize]
+    }
+}
+
+impl RgbImage32 {
+    /// Builds an image, checking that `data` has `3 * width * height` values.
+    pub fn new(width: u32, height: u32, data: Vec<f32>) -> Result<Self> {
+        check_size(width, height, 3, data.len())?;
+        Ok(Self { width, height, data })
+    }
+
+    /// The colour at pixel `(x, y)`.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        let i = 3 * (y as usize * self.width as usize + x as usize);
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+}
+
+const PNG_MAGIC: &[u8] = b"\x89PNG\r\n\x1a\n";
+const EXR_MAGIC: &[u8] = &[0x76, 0x2f, 0x31, 0x01];
+
+enum Decoded {
+    Png(image::DynamicImage),
+    /// Width, height and the named channels of the first layer.
+    Exr(u32, u32, Vec<(String, Vec<f32>)>),
+}
+
+fn image_err(msg: impl std::fmt::Display) -> FormatError {
+    FormatErrorKind::Image(msg.to_string()).into()
+}
+
+/// Runs a third-party decoder, turning a panic into an error.
+fn guarded<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
+        .unwrap_or_else(|_| Err(image_err("the decoder failed on malformed data; the file is corrupt")))
+}
+
+fn decode(bytes: &[u8]) -> Result<Decoded> {
+    if bytes.starts_with(PNG_MAGIC) {
+        guarded(|| {
+            let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png).map_err(image_err)?;
+            Ok(Decoded::Png(img))
+        })
+    } else if bytes.starts_with(EXR_MAGIC) {
+        guarded(|| decode_exr(bytes))
+    } else {
+        let found = String::from_utf8_lossy(&bytes[..bytes.len().min(8)]).into_owned();
+        Err(FormatErrorKind::BadMagic { format: "PNG or OpenEXR", expected: "\\x89PNG or v/1\\x01", found }.into())
+    }
+}
+
+fn decode_exr(bytes: &[u8]) -> Result<Decoded> {
+    use exr::prelude::{read, ReadChannels, ReadLayers};
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(IoCursor::new(bytes))
+        .map_err(|e| image_err(format!("cannot read the OpenEXR file: {e}")))?;
+    let layer = image.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(image_err(format!("the OpenEXR image is too large ({w}x{h})")));
+    };
+    let channels: Vec<(String, Vec<f32>)> =
+        layer.channel_data.list.iter().map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect())).collect();
+    if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != w * h) {
+        return Err(image_err(format!(
+            "OpenEXR channel {name:?} is subsampled; hairrecon reads full-resolution channels"
+        )));
+    }
+    if channels.is_empty() {
+        return Err(image_err("the OpenEXR file has no channels"));
+    }
+    Ok(Decoded::Exr(w32, h32, channels))
+}
+
+fn take_channel(channels: &mut Vec<(String, Vec<f32>)>, name: &str) -> Option<Vec<f32>> {
+    let i = channels.iter().position(|(n, _)| n == name)?;
+    Some(channels.swap_remove(i).1)
+}
+
+fn exr_gray(mut channels: Vec<(String, Vec<f32>)>) -> Result<Vec<f32>> {
+    if channels.len() == 1 {
+        return Ok(channels.remove(0).1);
+    }
+    let names: Vec<String> = channels.iter().map(|(n, _)| n.clone()).collect();
+    take_channel(&mut channels, "Y").or_else(|| take_channel(&mut channels, "R")).ok_or_else(|| {
+        image_err(format!(
+            "the OpenEXR file has channels {names:?} but no Y or R; read a named channel with read_exr_channel"
+        ))
+    })
+}
+
+/// Reads a one-channel float image from a PNG or OpenEXR file (see the module doc for which values).
+pub fn read_gray_f32(path: impl AsRef<Path>) -> Result<GrayImage32> {
+    let path = path.as_ref();
+    let bytes = read_file(path)?;
+    read_gray_f32_bytes(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// [`read_gray_f32`] from memory.
+pub fn read_gray_f32_bytes(bytes: &[u8]) -> Result<GrayImage32> {
+    match decode(bytes)? {
+        Decoded::Png(img) => {
+            let (w, h) = (img.width(), img.height());
+            let data = match img {
+                image::DynamicImage::ImageLuma8(b) => b.into_raw().into_iter().map(|v| v as f32 / 255.0).collect(),
+                image::DynamicImage::ImageLuma16(b) => b.into_raw().into_iter().map(|v| v as f32 / 65535.0).collect(),
+                other => other.to_luma32f().into_raw(),
+            };
+            GrayImage32::new(w, h, data)
+        }
+        Decoded::Exr(w, h, channels) => GrayImage32::new(w, h, exr_gray(channels)?),
+    }
+}
+
+/// Reads a three-channel float image from a PNG or OpenEXR file (see the module doc).
+pub fn read_rgb_f32(path: impl AsRef<Path>) -> Result<RgbImage32> {
+    let path = path.as_ref();
+    let bytes = read_file(path)?;
+    read_rgb_f32_bytes(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// [`read_rgb_f32`] from memory.
+pub fn read_rgb_f32_bytes(bytes: &[u8]) -> Result<RgbImage32> {
+    match decode(bytes)? {
+        Decoded::Png(img) => {
+            let (w, h) = (img.width(), img.height());
+            let data = match img {
+                image::DynamicImage::ImageRgb8(b) => b.into_raw().into_iter().map(|v| v as f32 / 255.0).collect(),
+                image::DynamicImage::ImageRgb16(b) => b.into_raw().into_iter().map(|v| v as f32 / 65535.0).collect(),
+                other => other.to_rgb32f().into_raw(),
+            };
+            RgbImage32::new(w, h, data)
+        }
+        Decoded::Exr(w, h, mut channels) => {
+            let rgb = match (
+                take_channel(&mut channels, "R"),
+                take_channel(&mut channels, "G"),
+                take_channel(&mut channels, "B"),
+            ) {
+                (Some(r), Some(g), Some(b)) => [r, g, b],
+                (r, g, b) => {
+                    // Put back what was taken and read a gray image.
+                    for (n, v) in [("R", r), ("G", g), ("B", b)] {
+                        if let Some(v) = v {
+                            channels.push((n.into(), v));
+                        }
+                    }
+                    let y = exr_gray(channels)?;
+                    [y.clone(), y.clone(), y]
+                }
+            };
+            let mut data = Vec::with_capacity(3 * rgb[0].len());
+            for i in 0..rgb[0].len() {
+                data.extend([rgb[0][i], rgb[1][i], rgb[2][i]]);
+            }
+            RgbImage32::new(w, h, data)
+        }
+    }
+}
+
+/// Reads the channel called `name` of an OpenEXR file (e.g. `"Z"` or `"ViewLayer.Depth.Z"`).
+pub fn read_exr_channel(path: impl AsRef<Path>, name: &str) -> Result<GrayImage32> {
+    let path = path.as_ref();
+    let bytes = read_file(path)?;
+    let inner = || -> Result<GrayImage32> {
+        match decode(&bytes)? {
+            Decoded::Exr(w, h, mut channels) => {
+                let names: Vec<String> = channels.iter().map(|(n, _)| n.clone()).collect();
+                let data = take_channel(&mut channels, name)
+                    .ok_or_else(|| image_err(format!("the OpenEXR file has no channel {name:?}; it has {names:?}")))?;
+                GrayImage32::new(w, h, data)
+            }
+            Decoded::Png(_) => Err(image_err("this is a PNG file, not OpenEXR; read it with read_gray_f32")),
+        }
+    };
+    inner().map_err(|e| e.in_file(path))
+}
+
+/// Checks values before quantising them: NaN cannot be written to PNG.
+fn quantize<T>(data: &[f32], max: f32, conv: impl Fn(f32) -> T) -> Result<Vec<T>> {
+    let mut out = Vec::with_capacity(data.len());
+    for (i, &v) in data.iter().enumerate() {
+        if v.is_nan() {
+            return Err(invalid(format!("value {i} is NaN; PNG cannot store it (clean the image or write EXR)")));
+        }
+        out.push(conv((v.clamp(0.0, 1.0) * max).round()));
+    }
+    Ok(out)
+}
+
+fn write_png(path: &Path, width: u32, height: u32, bytes: &[u8], color: image::ExtendedColorType) -> Result<()> {
+    use image::ImageEncoder;
+    atomic_write(path, |w| {
+        image::codecs::png::PngEncoder::new(w).write_image(bytes, width, height, color).map_err(image_err)
+    })
+}
+
+/// Writes an 8-bit gray PNG (values clamped to `[0, 1]`, then rounded to 0..=255).
+pub fn write_png8_gray(path: impl AsRef<Path>, img: &GrayImage32) -> Result<()> {
+    let path = path.as_ref();
+    check_size(img.width, img.height, 1, img.data.len()).map_err(|e| e.in_file(path))?;
+    let q = quantize(&img.data, 255.0, |v| v as u8).map_err(|e| e.in_file(path))?;
+    write_png(path, img.width, img.height, &q, image::ExtendedColorType::L8)
+}
+
+/// Writes a 16-bit gray PNG (values clamped to `[0, 1]`, then rounded to 0..=65535).
+pub fn write_png16_gray(path: impl AsRef<Path>, img: &GrayImage32) -> Result<()> {
+    let path = path.as_ref();
+    check_size(img.width, img.height, 1, img.data.len()).map_err(|e| e.in_file(path))?;
+    let q = quantize(&img.data, 65535.0, |v| v as u16).map_err(|e| e.in_file(path))?;
+    // The encoder takes 16-bit samples in native byte order.
+    let bytes: Vec<u8> = q.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    write_png(path, img.width, img.height, &bytes, image::ExtendedColorType::L16)
+}
+
+/// Writes an 8-bit RGB PNG (values clamped to `[0, 1]`, then rounded to 0..=255).
+pub fn write_png8_rgb(path: impl AsRef<Path>, img: &RgbImage32) -> Result<()> {
+    let path = path.as_ref();
+    check_size(img.width, img.height, 3, img.data.len()).map_err(|e| e.in_file(path))?;
+    let q = quantize(&img.data, 255.0, |v| v as u8).map_err(|e| e.in_file(path))?;
+    write_png(path, img.width, img.height, &q, image::ExtendedColorType::Rgb8)
+}
+
+fn write_exr(path: &Path, width: u32, height: u32, channels: Vec<(&str, Vec<f32>)>) -> Result<()> {
+    use exr::prelude::{AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, WritableImage};
+    let list: Vec<AnyChannel<FlatSamples>> =
+        channels.into_iter().map(|(n, v)| AnyChannel::new(n, FlatSamples::F32(v))).collect();
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list.into()),
+    );
+    let image = Image::from_layer(layer);
+    atomic_write(path, |w| image.write().to_buffered(w).map_err(|e| image_err(format!("cannot write OpenEXR: {e}"))))
+}
+
+/// Writes a one-channel (`Y`) 32-bit float OpenEXR file, values unchanged.
+pub fn write_exr_gray_f32(path: impl AsRef<Path>, img: &GrayImage32) -> Result<()> {
+    let path = path.as_ref();
+    check_size(img.width, img.height, 1, img.data.len()).map_err(|e| e.in_file(path))?;
+    write_exr(path, img.width, img.height, vec![("Y", img.data.clone())])
+}
+
+/// Writes an `R G B` 32-bit float OpenEXR file, values unchanged.
+pub fn write_exr_rgb_f32(path: impl AsRef<Path>, img: &RgbImage32) -> Result<()> {
+    let path = path.as_ref();
+    check_size(img.width, img.height, 3, img.data.len()).map_err(|e| e.in_file(path))?;
+    let plane = |c: usize| img.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
+    write_exr(path, img.width, img.height, vec![("R", plane(0)), ("G", plane(1)), ("B", plane(2))])
+}

@@ -1,0 +1,119 @@
+//! Image I/O round trips and errors: PNG 8/16-bit and OpenEXR float, gray and RGB.
+
+use std::path::PathBuf;
+
+use hairrecon_core::formats::FormatErrorKind;
+use hairrecon_core::image_io::*;
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("hairrecon-image-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A seeded xorshift generator for test data.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    fn f32(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+#[test]
+fn png_round_trips_quantise_exactly() {
+    let d = tmp_dir("png");
+    let (w, h) = (7, 5);
+    // Values on the 8-bit grid read back exactly; others within half a step.
+    let grid: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 256) as f32 / 255.0).collect();
+    let g = GrayImage32::new(w, h, grid.clone()).unwrap();
+    write_png8_gray(d.join("g8.png"), &g).unwrap();
+    assert_eq!(read_gray_f32(d.join("g8.png")).unwrap(), g);
+    let mut rng = Rng(7);
+    let any: Vec<f32> = (0..w * h).map(|_| rng.f32()).collect();
+    let g = GrayImage32::new(w, h, any.clone()).unwrap();
+    write_png16_gray(d.join("g16.png"), &g).unwrap();
+    let back = read_gray_f32(d.join("g16.png")).unwrap();
+    for (a, b) in any.iter().zip(&back.data) {
+        assert!((a - b).abs() <= 0.5 / 65535.0 + 1e-7, "{a} {b}");
+    }
+    // Out-of-range values are clamped.
+    let g = GrayImage32::new(2, 1, vec![-3.0, 7.0]).unwrap();
+    write_png8_gray(d.join("clamp.png"), &g).unwrap();
+    assert_eq!(read_gray_f32(d.join("clamp.png")).unwrap().data, vec![0.0, 1.0]);
+    // RGB: exact on the grid; the gray reader gives Rec. 709 luminance.
+    let rgb: Vec<f32> = (0..3 * w * h).map(|i| ((i * 11) % 256) as f32 / 255.0).collect();
+    let c = RgbImage32::new(w, h, rgb.clone()).unwrap();
+    write_png8_rgb(d.join("c8.png"), &c).unwrap();
+    assert_eq!(read_rgb_f32(d.join("c8.png")).unwrap(), c);
+    let y = read_gray_f32(d.join("c8.png")).unwrap();
+    let [r, g_, b] = c.get(3, 2);
+    assert!((y.get(3, 2) - (0.2126 * r + 0.7152 * g_ + 0.0722 * b)).abs() < 1e-4);
+    // A gray PNG read as RGB repeats the gray value.
+    let c = read_rgb_f32(d.join("g8.png")).unwrap();
+    assert_eq!(c.get(4, 3), [grid[3 * 7 + 4]; 3]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn exr_round_trips_are_bit_exact() {
+    let d = tmp_dir("exr");
+    let mut rng = Rng(11);
+    let (w, h) = (9, 4);
+    let vals: Vec<f32> = (0..w * h).map(|_| (rng.f32() - 0.5) * 1e4).collect();
+    let g = GrayImage32::new(w, h, vals).unwrap();
+    write_exr_gray_f32(d.join("g.exr"), &g).unwrap();
+    assert_eq!(read_gray_f32(d.join("g.exr")).unwrap(), g);
+    assert_eq!(read_exr_channel(d.join("g.exr"), "Y").unwrap(), g);
+    let e = read_exr_channel(d.join("g.exr"), "Z").unwrap_err();
+    assert!(e.to_string().contains("no channel \"Z\"") && e.to_string().contains("g.exr"), "{e}");
+    let c = read_rgb_f32(d.join("g.exr")).unwrap();
+    assert_eq!(c.get(5, 2), [g.get(5, 2); 3]);
+
+    let vals: Vec<f32> = (0..3 * w * h).map(|_| rng.f32() * 3.0 - 1.0).collect();
+    let c = RgbImage32::new(w, h, vals).unwrap();
+    write_exr_rgb_f32(d.join("c.exr"), &c).unwrap();
+    assert_eq!(read_rgb_f32(d.join("c.exr")).unwrap(), c);
+    // Gray from an RGB EXR is the R channel, not a mix of data channels.
+    let r = read_gray_f32(d.join("c.exr")).unwrap();
+    assert_eq!(r.get(8, 3), c.get(8, 3)[0]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn errors_name_the_file_and_leave_no_output() {
+    let d = tmp_dir("err");
+    // Wrong size.
+    assert!(GrayImage32::new(3, 3, vec![0.0; 8]).is_err());
+    assert!(RgbImage32::new(0, 3, vec![]).is_err());
+    // NaN cannot go to PNG: an error naming the file, and no file left behind.
+    let g = GrayImage32::new(2, 2, vec![0.0, f32::NAN, 0.5, 1.0]).unwrap();
+    let p = d.join("nan.png");
+    let e = write_png8_gray(&p, &g).unwrap_err();
+    assert_eq!(e.path.as_deref(), Some(p.as_path()));
+    assert!(e.to_string().contains("NaN"), "{e}");
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+    // Not an image.
+    std::fs::write(d.join("x.png"), b"hello world").unwrap();
+    let e = read_gray_f32(d.join("x.png")).unwrap_err();
+    assert!(matches!(e.kind, FormatErrorKind::BadMagic { .. }) && e.to_string().contains("x.png"), "{e}");
+    // Truncated PNG and EXR files: errors, never panics.
+    write_png8_gray(d.join("ok.png"), &GrayImage32::filled(16, 16, 0.5)).unwrap();
+    write_exr_gray_f32(d.join("ok.exr"), &GrayImage32::filled(16, 16, 0.5)).unwrap();
+    for name in ["ok.png", "ok.exr"] {
+        let bytes = std::fs::read(d.join(name)).unwrap();
+        // (A PNG cut inside its final IEND chunk still holds every pixel and decodes; cut earlier.)
+        for cut in [8, bytes.len() / 2, bytes.len() - 13] {
+            assert!(read_gray_f32_bytes(&bytes[..cut]).is_err(), "{name} cut at {cut}");
+        }
+    }
+    // Missing file.
+    let e = read_rgb_f32(d.join("missing.exr")).unwrap_err();
+    assert!(matches!(e.kind, FormatErrorKind::Io(_)) && e.to_string().contains("missing.exr"), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
