@@ -120,7 +120,389 @@ def task_camera(p):
     return {"cases": cases, "errors": errors}
 
 
-TASKS = {"camera": task_camera}
+# --- helpers for the extension tasks ---------------------------------------------------------------
+
+DATA_KINDS = ("objects", "meshes", "hair_curves", "cameras", "images", "materials", "collections")
+
+
+def snapshot() -> dict:
+    """Names of the datablocks the add-on may touch, and each mesh's UV maps."""
+    snap = {k: sorted(db.name for db in getattr(bpy.data, k)) for k in DATA_KINDS}
+    snap["uv_maps"] = {m.name: [l.name for l in m.uv_layers] for m in bpy.data.meshes}
+    return snap
+
+
+def install(zip_path: str) -> dict:
+    """Installs the extension zip into the user folder (BLENDER_USER_RESOURCES) and enables it."""
+    import addon_utils
+
+    res = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
+    enabled = sorted(m for m in bpy.context.preferences.addons.keys())
+    import hairrecon  # the Rust module, from the extension's wheel
+
+    return {
+        "result": sorted(res),
+        "enabled": enabled,
+        "module_file": hairrecon.__file__,
+        "version": hairrecon.__version__,
+        "has_operator": hasattr(bpy.types, "HAIRRECON_OT_reconstruct"),
+        "addon_module": [m.__name__ for m in addon_utils.modules() if m.__name__.endswith(".hairrecon")],
+    }
+
+
+def extension_package():
+    import importlib
+
+    return importlib.import_module("bl_ext.user_default.hairrecon")
+
+
+def run_op(op, **kw):
+    """Calls an operator; returns (result set or None, error message or None)."""
+    try:
+        return sorted(op(**kw)), None
+    except RuntimeError as e:
+        return None, str(e)
+
+
+def configure(p):
+    s = bpy.context.scene.hairrecon
+    s.quality = "CUSTOM"
+    s.guides = int(p.get("guides", 100))
+    s.children = int(p.get("children", 1000))
+    s.iterations = int(p.get("iterations", 20))
+    s.stop_after = p.get("stop_after", "") or ""
+
+
+def curves_report(obj) -> dict:
+    """Checks one hair Curves object against its scalp surface (world space)."""
+    from mathutils.bvhtree import BVHTree
+
+    cv = obj.data
+    n_pts, n_cur = len(cv.points), len(cv.curves)
+    pos = np.empty(n_pts * 3, np.float32)
+    cv.attributes["position"].data.foreach_get("vector", pos)
+    pos = pos.reshape(-1, 3).astype(np.float64)
+    off = np.empty(n_cur + 1, np.int32)
+    cv.curve_offset_data.foreach_get("value", off)
+    m = np.array(obj.matrix_world)
+    world = pos @ m[:3, :3].T + m[:3, 3]
+    roots_local = pos[off[:-1]]
+    roots = world[off[:-1]]
+    out = {"name": obj.name, "curves": n_cur, "points": n_pts, "surface": cv.surface.name if cv.surface else None,
+           "uv_map": cv.surface_uv_map, "has_radius": "radius" in cv.attributes}
+    if "radius" in cv.attributes:
+        r = np.empty(n_pts, np.float32)
+        cv.attributes["radius"].data.foreach_get("value", r)
+        out["radius_range"] = [float(r.min()), float(r.max())]
+    mats = [mt.name for mt in cv.materials if mt]
+    out["materials"] = mats
+    out["material_nodes"] = sorted({n.bl_idname for mt in cv.materials if mt and mt.node_tree for n in mt.node_tree.nodes})
+    surf = cv.surface
+    if surf is None:
+        return out
+    me = surf.data
+    me.calc_loop_triangles()
+    sm = np.array(surf.matrix_world)
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    co_l = co.reshape(-1, 3).astype(np.float64)
+    co_w = co_l @ sm[:3, :3].T + sm[:3, 3]
+    tri_v = np.empty(len(me.loop_triangles) * 3, np.int32)
+    me.loop_triangles.foreach_get("vertices", tri_v)
+    tri_v = tri_v.reshape(-1, 3)
+    tri_l = np.empty(len(me.loop_triangles) * 3, np.int32)
+    me.loop_triangles.foreach_get("loops", tri_l)
+    tri_l = tri_l.reshape(-1, 3)
+    layer = me.uv_layers.get(cv.surface_uv_map)
+    out["uv_map_exists"] = layer is not None
+    # distance of every root to the scalp surface, world space
+    bvh = BVHTree.FromPolygons(co_w.tolist(), tri_v.tolist(), all_triangles=True)
+    d = np.array([bvh.find_nearest(r.tolist())[3] for r in roots])
+    out["root_dist_max_mm"] = float(1000 * d.max())
+    out["root_dist_median_mm"] = float(1000 * np.median(d))
+    if "surface_uv_coordinate" not in cv.attributes or layer is None:
+        return out
+    a = cv.attributes["surface_uv_coordinate"]
+    out["uv_attr"] = [a.domain, a.data_type]
+    uv = np.empty(n_cur * 2, np.float32)
+    a.data.foreach_get("vector", uv)
+    uv = uv.reshape(-1, 2).astype(np.float64)
+    out["uv_min"], out["uv_max"] = uv.min(axis=0).tolist(), uv.max(axis=0).tolist()
+    # map each UV back to the surface: find its triangle in UV space, interpolate the 3D corners
+    luv = np.empty(len(me.loops) * 2, np.float32)
+    layer.uv.foreach_get("vector", luv)
+    luv = luv.reshape(-1, 2).astype(np.float64)
+    tuv = luv[tri_l]  # (T, 3, 2)
+    flat = [[(float(x), float(y), 0.0) for x, y in t] for t in tuv]
+    verts2 = [v for t in flat for v in t]
+    uv_bvh = BVHTree.FromPolygons(verts2, [(3 * i, 3 * i + 1, 3 * i + 2) for i in range(len(flat))], all_triangles=True)
+    back = np.zeros((n_cur, 3))
+    uv_miss = np.zeros(n_cur)
+    for i, (u, v) in enumerate(uv):
+        loc, _, ti, dist = uv_bvh.find_nearest((float(u), float(v), 0.0))
+        uv_miss[i] = dist
+        a2, b2, c2 = tuv[ti]
+        T = np.array([[b2[0] - a2[0], c2[0] - a2[0]], [b2[1] - a2[1], c2[1] - a2[1]]])
+        try:
+            l1, l2 = np.linalg.solve(T, np.array([loc[0] - a2[0], loc[1] - a2[1]]))
+        except np.linalg.LinAlgError:
+            l1 = l2 = 0.0
+        w = np.array([1 - l1 - l2, l1, l2])
+        back[i] = w @ co_w[tri_v[ti]]
+    # the closest surface point of each root, to compare the UV's surface point with
+    closest = np.array([bvh.find_nearest(r.tolist())[0] for r in roots])
+    out["uv_outside_map_max"] = float(uv_miss.max())
+    out["uv_back_to_closest_max_mm"] = float(1000 * np.linalg.norm(back - closest, axis=1).max())
+    out["uv_back_to_root_max_mm"] = float(1000 * np.linalg.norm(back - roots, axis=1).max())
+    return out
+
+
+def attach_node_check(obj, offset=(0.0, 0.0, 0.01)) -> dict:
+    """Adds Blender's own "Attach Hair Curves to Surface" node group as a modifier, moves the
+    surface's mesh by `offset` with a shape-key-free Displace-like edit on an evaluated copy, and checks
+    the evaluated roots followed (the node finds each root through its UV)."""
+    path = Path(bpy.utils.system_resource("DATAFILES")) / "assets" / "nodes" / "procedural_hair_node_assets.blend"
+    with bpy.data.libraries.load(str(path), link=False) as (src, dst):
+        dst.node_groups = [n for n in src.node_groups if n == "Attach Hair Curves to Surface"]
+    ng = dst.node_groups[0]
+    cv = obj.data
+    surf = cv.surface
+    mod = obj.modifiers.new("attach", "NODES")
+    mod.node_group = ng
+    ids = {it.name: it.identifier for it in ng.interface.items_tree if getattr(it, "in_out", "") == "INPUT"}
+    if "Surface" in ids:
+        mod[ids["Surface"]] = surf
+    if "Surface UV Map" in ids:
+        mod[ids["Surface UV Map"]] = cv.surface_uv_map
+    # deform the surface: a Displace modifier with no texture moves every vertex along Z by strength
+    disp = surf.modifiers.new("move", "DISPLACE")
+    disp.direction = "Z"
+    disp.mid_level = 0.0
+    disp.strength = offset[2]
+    bpy.context.view_layer.update()
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(dg)
+    ecv = ev.data
+    n = len(ecv.points)
+    p_ev = np.empty(n * 3, np.float32)
+    ecv.attributes["position"].data.foreach_get("vector", p_ev)
+    p0 = np.empty(len(cv.points) * 3, np.float32)
+    cv.attributes["position"].data.foreach_get("vector", p0)
+    d = p_ev.reshape(-1, 3) - p0.reshape(-1, 3)
+    surf.modifiers.remove(disp)
+    obj.modifiers.remove(mod)
+    bpy.data.node_groups.remove(ng)
+    # the surface object's local Z, in curves-local space: the curves are parented with identity
+    sm = np.array(surf.matrix_world)[:3, :3]
+    want = np.array([0.0, 0.0, offset[2]])
+    return {"inputs": sorted(ids), "moved_err_max_mm": float(1000 * np.abs(d - want).max()),
+            "moved_mean_mm": (1000 * d.mean(axis=0)).tolist()}
+
+
+def new_result_objects(before: dict) -> list:
+    return [bpy.data.objects[n] for n in sorted(set(snapshot()["objects"]) - set(before["objects"]))]
+
+
+def task_install(p):
+    return install(p["zip"])
+
+
+def task_pipeline(p):
+    out = {"install": install(p["zip"])}
+    import hairrecon
+
+    res, err = run_op(bpy.ops.hairrecon.import_capture, directory=p["capture"])
+    out["import"] = {"result": res, "error": err, "snapshot": snapshot()}
+    scene = bpy.context.scene
+    s = scene.hairrecon
+    out["panel_after_import"] = {
+        "cameras": len([o for o in s.camera_collection.all_objects if o.type == "CAMERA"]) if s.camera_collection else 0,
+        "raw_mesh": s.raw_mesh.name if s.raw_mesh else None,
+        "scalp": s.scalp_object.name if s.scalp_object else None,
+        "mask_folder": s.mask_folder,
+        "resolution": [scene.render.resolution_x, scene.render.resolution_y],
+        "scalp_uv_maps": [l.name for l in s.scalp_object.data.uv_layers] if s.scalp_object else [],
+    }
+    # the imported cameras give back the capture's K, R, t
+    import json as _json
+
+    spec = _json.loads((Path(p["capture"]) / "capture.json").read_text())
+    pkg = extension_package()
+    from importlib import import_module
+
+    sr = import_module(pkg.__name__ + ".scene_read")
+    cam_mod = import_module(pkg.__name__ + ".core.camera")
+    worst_k = worst_rt = 0.0
+    for v in spec["views"]:
+        pin = cam_mod.opencv_from_blender(sr.blender_camera(bpy.data.objects[v["name"]], scene))
+        worst_k = max(worst_k, float(np.abs(pin.K - np.array(v["K"])).max()))
+        worst_rt = max(worst_rt, float(np.abs(pin.R - np.array(v["R"])).max()), float(np.abs(pin.t - np.array(v["t"])).max()))
+    out["camera_roundtrip"] = {"K_max_abs": worst_k, "Rt_max_abs": worst_rt}
+
+    configure(p)
+    runs = []
+    for run in range(2):
+        before = snapshot()
+        t0 = time.monotonic()
+        res, err = run_op(bpy.ops.hairrecon.reconstruct)
+        objs = new_result_objects(before)
+        runs.append({
+            "result": res, "error": err, "seconds": time.monotonic() - t0,
+            "new": {k: sorted(set(snapshot()[k]) - set(before[k])) for k in DATA_KINDS},
+            "gone": {k: sorted(set(before[k]) - set(snapshot()[k])) for k in DATA_KINDS},
+            "curves": [curves_report(o) for o in objs if o.type == "CURVES"],
+        })
+        if err:
+            break
+    out["runs"] = runs
+    if runs and not runs[-1]["error"]:
+        hair = [o for o in new_result_objects(out["import"]["snapshot"]) if o.type == "CURVES"]
+        children = [o for o in hair if not o.name.endswith("Guides")]
+        if children:
+            out["attach_node"] = attach_node_check(children[0])
+        # export the selected hair and read it back
+        for o in bpy.context.view_layer.objects:
+            o.select_set(False)
+        target = children[0] if children else hair[0]
+        target.select_set(True)
+        bpy.context.view_layer.objects.active = target
+        exp = {}
+        for ext in (".hair", ".data", ".ply"):
+            f = Path(p["workdir"]) / f"export{ext}"
+            res, err = run_op(bpy.ops.hairrecon.export_hair, filepath=str(f))
+            e = {"result": res, "error": err}
+            if not err:
+                pts, counts = hairrecon.read_strands(str(f))
+                cv = target.data
+                pos = np.empty(len(cv.points) * 3, np.float32)
+                cv.attributes["position"].data.foreach_get("vector", pos)
+                m = np.array(target.matrix_world)
+                world = pos.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+                e.update(curves=int(len(counts)), points=int(len(pts)),
+                         max_diff_m=float(np.abs(np.asarray(pts).reshape(-1, 3) - world).max()))
+            exp[ext] = e
+        res, err = run_op(bpy.ops.hairrecon.export_hair, filepath=str(Path(p["workdir"]) / "export.abc"))
+        exp[".abc"] = {"result": res, "error": err}
+        out["export"] = exp
+    if p.get("save_blend"):
+        # a scene for the batch-script test: the capture imported, settings made, no results
+        for o in new_result_objects(out["import"]["snapshot"]):
+            bpy.data.objects.remove(o)
+        bpy.ops.wm.save_as_mainfile(filepath=p["save_blend"])
+        out["saved"] = p["save_blend"]
+    return out
+
+
+def task_cancel(p):
+    out = {"install": install(p["zip"])}
+    run_op(bpy.ops.hairrecon.import_capture, directory=p["capture"])
+    configure(p)
+    import hairrecon
+
+    pkg = extension_package()
+    from importlib import import_module
+
+    Session = import_module(pkg.__name__ + ".session").Session
+    before = snapshot()
+    sess = Session.prepare(bpy.context)
+    root = sess.root
+    sess.start()
+    time.sleep(float(p.get("cancel_after", 0.2)))
+    sess.cancel()
+    t0 = time.monotonic()
+    sess.wait()
+    out["stop_seconds"] = time.monotonic() - t0
+    try:
+        sess.finish(bpy.context)
+        out["raised"] = None
+    except hairrecon.Cancelled as e:
+        out["raised"] = "Cancelled: " + str(e)
+    except Exception as e:  # noqa: BLE001
+        out["raised"] = f"{type(e).__name__}: {e}"
+    out["unchanged"] = snapshot() == before
+    out["temp_removed"] = not Path(root).exists()
+    return out
+
+
+def base_scene(tmp: Path):
+    """A tiny valid scene: a camera with a photo (a generated image) looking at a raw mesh sphere
+    with a scalp cap; bad-input cases each break one thing of it."""
+    scene = bpy.context.scene
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 64, 96, 100
+    cams = bpy.data.collections.new("Cams")
+    scene.collection.children.link(cams)
+    cd = bpy.data.cameras.new("cam0")
+    co = bpy.data.objects.new("cam0", cd)
+    co.location = (0.0, -1.0, 0.0)
+    co.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    cams.objects.link(co)
+    img = bpy.data.images.new("photo0", 64, 96)
+    img.pixels.foreach_set(np.full(64 * 96 * 4, 0.5, np.float32))
+    bg = cd.background_images.new()
+    bg.image = img
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.1)
+    raw = bpy.context.active_object
+    raw.name = "raw"
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.09)
+    scalp = bpy.context.active_object
+    scalp.name = "scalp"
+    s = scene.hairrecon
+    s.camera_collection, s.raw_mesh, s.scalp_object = cams, raw, scalp
+    configure({"guides": 10, "children": 10})
+    return {"cams": cams, "cam": co, "raw": raw, "scalp": scalp, "image": img}
+
+
+def task_bad_inputs(p):
+    out = {"install": install(p["zip"])}
+    tmp = Path(p["workdir"])
+    cases = {}
+
+    def case(name, breaker):
+        objs = base_scene(tmp)
+        breaker(objs)
+        bpy.context.view_layer.update()
+        before = snapshot()
+        res, err = run_op(bpy.ops.hairrecon.reconstruct)
+        cases[name] = {"result": res, "error": err, "unchanged": snapshot() == before}
+
+    def no_cameras(o):
+        bpy.data.objects.remove(o["cam"])
+
+    def no_photo(o):
+        o["cam"].data.background_images.clear()
+
+    def no_faces(o):
+        me = bpy.data.meshes.new("points")
+        me.from_pydata([(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0)], [], [])
+        pts = bpy.data.objects.new("points", me)
+        bpy.context.scene.collection.objects.link(pts)
+        bpy.context.scene.hairrecon.raw_mesh = pts
+
+    def zero_focal(o):
+        o["cam"].data.angle = math.pi  # Blender's own clamp lets this through: lens ~ 0 mm
+
+    def ortho(o):
+        o["cam"].data.type = "ORTHO"
+
+    def no_scalp(o):
+        bpy.context.scene.hairrecon.scalp_object = None
+
+    for name, fn in (("no_cameras", no_cameras), ("no_photo", no_photo), ("no_faces", no_faces),
+                     ("zero_focal", zero_focal), ("ortho", ortho), ("no_scalp", no_scalp)):
+        case(name, fn)
+    out["cases"] = cases
+    return out
+
+
+TASKS = {
+    "camera": task_camera,
+    "install": task_install,
+    "pipeline": task_pipeline,
+    "cancel": task_cancel,
+    "bad_inputs": task_bad_inputs,
+}
 
 
 def main():

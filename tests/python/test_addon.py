@@ -1,0 +1,336 @@
+"""Tests of the Blender extension (addon/hairrecon) with the bpy module, headless.
+
+The Blender parts run in a subprocess per test (tests/python/addon_worker.py, through
+addon_harness.run_worker) with a temporary BLENDER_USER_RESOURCES, because bpy can be imported once
+per process and the extension installs into the user folder. The extension is built once per
+session by scripts/build_extension.py (set HAIRRECON_EXTENSION_ZIP to test a prebuilt zip, or
+HAIRRECON_WHEEL to package an already built wheel). Reconstructions use small counts.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import zipfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from addon_harness import PYTHON, ROOT, run_worker  # noqa: E402
+
+SMALL = dict(guides=64, children=400, iterations=10)
+
+
+def load_core():
+    """addon/hairrecon/core as a package named hairrecon_addon_core (it needs no bpy)."""
+    name = "hairrecon_addon_core"
+    if name in sys.modules:
+        return sys.modules[name]
+    core = ROOT / "addon" / "hairrecon" / "core"
+    spec = importlib.util.spec_from_file_location(name, core / "__init__.py", submodule_search_locations=[str(core)])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def read_png(path):
+    """Minimal PNG reader for 8-bit, filter-0 images as written by core.capture.write_png."""
+    data = Path(path).read_bytes()
+    pos, idat, ihdr = 8, b"", None
+    while pos < len(data):
+        n = int.from_bytes(data[pos:pos + 4], "big")
+        tag = data[pos + 4:pos + 8]
+        body = data[pos + 8:pos + 8 + n]
+        if tag == b"IHDR":
+            ihdr = body
+        elif tag == b"IDAT":
+            idat += body
+        pos += 12 + n
+    w, h = int.from_bytes(ihdr[:4], "big"), int.from_bytes(ihdr[4:8], "big")
+    c = {0: 1, 4: 2, 2: 3, 6: 4}[ihdr[9]]
+    raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + w * c)
+    assert (raw[:, 0] == 0).all()
+    return raw[:, 1:].reshape(h, w, c)
+
+
+# --- bpy-free core, in this process -------------------------------------------------------------
+
+
+def test_core_png_and_pixels_roundtrip(tmp_path):
+    load_core()
+    from hairrecon_addon_core.capture import pixels_to_uint8, png_size, write_png
+
+    rng = np.random.default_rng(3)
+    for c in (1, 3, 4):
+        img = rng.integers(0, 256, (7, 5, c), dtype=np.uint8)
+        write_png(tmp_path / f"a{c}.png", img)
+        assert png_size(tmp_path / f"a{c}.png") == (5, 7)
+        assert np.array_equal(read_png(tmp_path / f"a{c}.png"), img)
+    # Blender pixels are bottom row first, RGBA float; byte images keep their values
+    flat = np.zeros((2, 3, 4), np.float32)
+    flat[0, :, 0] = 1.0  # bottom row red
+    flat[1, :, 2] = 64 / 255  # top row dark blue
+    out = pixels_to_uint8(flat.ravel(), 3, 2, linear=False, channels=3)
+    assert out[0, 0].tolist() == [0, 0, 64] and out[1, 0].tolist() == [255, 0, 0]
+    lin = pixels_to_uint8(np.full(4, 0.214, np.float32), 1, 1, linear=True, channels=3)
+    assert abs(int(lin[0, 0, 0]) - 128) <= 1  # linear 0.214 is sRGB 0.5
+
+
+def test_core_uv_seams_submesh_and_attachment():
+    load_core()
+    from hairrecon_addon_core.capture import MeshData, split_uv_seams, submesh
+    from hairrecon_addon_core.surface import azimuthal_uv, barycentric, fit_sphere, interpolate_uv
+
+    # two triangles sharing an edge, with a UV seam along it: vertices 1 and 2 are duplicated
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
+    tri_loops = np.array([[0, 1, 2], [3, 4, 5]])
+    loop_vertex = np.array([0, 1, 2, 1, 3, 2])
+    loop_uv = np.array([[0, 0], [0.5, 0], [0, 0.5], [0.6, 0], [1, 1], [0, 0.6]], np.float32)
+    v, t, uv = split_uv_seams(pos, tri_loops, loop_vertex, loop_uv)
+    assert len(v) == 6 and t.shape == (2, 3)
+    assert np.allclose(v[t], pos[loop_vertex[tri_loops]]) and np.allclose(uv[t], loop_uv[tri_loops])
+    # without a seam the shared vertices stay shared
+    loop_uv2 = np.array([[0, 0], [1, 0], [0, 1], [1, 0], [1, 1], [0, 1]], np.float32)
+    v2, t2, _ = split_uv_seams(pos, tri_loops, loop_vertex, loop_uv2)
+    assert len(v2) == 4
+    sub = submesh(MeshData("m", v2, t2), np.isin(np.arange(4), t2[0]), "first")
+    assert len(sub.triangles) == 1 and len(sub.vertices) == 3
+
+    rng = np.random.default_rng(5)
+    a, b, c = rng.normal(size=(3, 50, 3))
+    w = rng.dirichlet([1, 1, 1], 50)
+    p = w[:, :1] * a + w[:, 1:2] * b + w[:, 2:] * c
+    assert np.allclose(barycentric(p, a, b, c), w, atol=1e-9)
+    corner_uv = rng.uniform(size=(50, 3, 2))
+    assert np.allclose(interpolate_uv(p, np.stack([a, b, c], 1), corner_uv), np.einsum("nk,nkj->nj", w, corner_uv))
+
+    # a scalp cap: the sphere fit finds the head, the projection is injective and inside [0, 1]
+    d = rng.normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    cap = d[d[:, 2] > 0.1] * 0.09 + np.array([0.01, -0.02, 1.6])
+    centre, r = fit_sphere(cap)
+    assert np.allclose(centre, [0.01, -0.02, 1.6], atol=1e-9) and abs(r - 0.09) < 1e-9
+    uv = azimuthal_uv(cap, centre, np.array([0, 0, 1.0]))
+    assert uv.min() >= 0 and uv.max() <= 1
+    near = np.linalg.norm(uv[:, None] - uv[None], axis=2) + np.eye(len(uv))
+    assert near.min() > 1e-6  # distinct points keep distinct UVs
+
+
+def test_core_write_capture_and_errors(tmp_path):
+    load_core()
+    from hairrecon_addon_core.camera import PinholeCamera
+    from hairrecon_addon_core.capture import CaptureInputError, MeshData, ViewInput, write_capture
+
+    K = np.array([[100.0, 0, 31.5], [0, 100, 47.5], [0, 0, 1]])
+    cam = PinholeCamera(K, np.eye(3), np.array([0, 0, 1.0]), 64, 96)
+    photo = np.full((192, 128, 3), 200, np.uint8)  # twice the render size: K is rescaled
+    mesh = MeshData("raw", np.eye(3, dtype=np.float32), np.array([[0, 1, 2]], np.uint32))
+    written = []
+    path = write_capture(tmp_path / "cap", [ViewInput("Camera.001", cam, photo)], mesh,
+                         lambda p, v, t, uvs=None: written.append(Path(p).name) or Path(p).write_text("x"))
+    spec = json.loads(path.read_text())
+    view = spec["views"][0]
+    assert (view["width"], view["height"], view["image"]) == (128, 192, "images/Camera.001.png")
+    assert np.allclose(view["K"], [[200, 0, 63.5], [0, 200, 95.5], [0, 0, 1]])
+    assert written == ["raw_mesh.ply"] and spec["raw_mesh"] == "raw_mesh.ply"
+    assert read_png(tmp_path / "cap" / view["image"]).shape == (192, 128, 3)
+
+    def err(views, m=mesh):
+        with pytest.raises(CaptureInputError) as e:
+            write_capture(tmp_path / "bad", views, m, lambda *a, **k: None)
+        return str(e.value)
+
+    assert "no cameras" in err([])
+    assert "'cam' has no photo" in err([ViewInput("cam", cam, None)])
+    assert "aspect ratio" in err([ViewInput("cam", cam, np.zeros((64, 64, 3), np.uint8))])
+    assert "no faces" in err([ViewInput("cam", cam, photo)], MeshData("pts", np.eye(3, dtype=np.float32), np.zeros((0, 3), np.uint32)))
+    assert "mask is 10x10" in err([ViewInput("cam", cam, photo, mask=np.zeros((10, 10, 1), np.uint8))])
+
+
+# --- camera conversion against Blender ----------------------------------------------------------
+
+
+def test_camera_conversion_matches_world_to_camera_view(tmp_path):
+    out = run_worker("camera", tmp_path / "user", cameras=40, seed=11)
+    cases = out["cases"]
+    assert len(cases) == 40 and sum(c["points"] for c in cases) > 40 * 200
+    worst = max(cases, key=lambda c: c["max_px"])
+    # Blender works in float32: up to 0.025 px seen on 3000 px images with 30,000 px focal lengths
+    assert worst["max_px"] < 0.05, worst
+    assert np.median([c["max_px"] for c in cases]) < 0.005
+    assert max(c["max_depth"] for c in cases) < 1e-5
+    assert max(c["roundtrip_px"] for c in cases) < 0.01  # OpenCV -> Blender settings -> OpenCV
+    assert {c["fit"] for c in cases} == {"AUTO", "HORIZONTAL", "VERTICAL"}
+    assert "focal length" in out["errors"]["zero_focal"] and "at least 1 mm" in out["errors"]["zero_focal"]
+    assert "perspective" in out["errors"]["ortho"]
+
+
+# --- the extension ------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="session")
+def extension_zip(tmp_path_factory):
+    if os.environ.get("HAIRRECON_EXTENSION_ZIP"):
+        return Path(os.environ["HAIRRECON_EXTENSION_ZIP"])
+    out = tmp_path_factory.mktemp("dist")
+    cmd = [str(PYTHON), str(ROOT / "scripts" / "build_extension.py"), "--out-dir", str(out)]
+    if os.environ.get("HAIRRECON_WHEEL"):
+        cmd += ["--wheel", os.environ["HAIRRECON_WHEEL"]]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=1800)
+    assert proc.returncode == 0, f"build_extension.py failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
+    return Path(proc.stdout.strip().splitlines()[-1])
+
+
+def test_extension_zip_layout_and_validation(extension_zip):
+    assert extension_zip.name.startswith("hairrecon-") and extension_zip.name.endswith(".zip")
+    with zipfile.ZipFile(extension_zip) as z:
+        names = z.namelist()
+        manifest = z.read("blender_manifest.toml").decode()
+    wheels = [n for n in names if n.startswith("wheels/") and n.endswith(".whl")]
+    assert len(wheels) == 1 and "abi3" in wheels[0], names
+    assert f'wheels = ["./{wheels[0]}"]' in manifest
+    for f in ("__init__.py", "operators.py", "ui.py", "core/camera.py", "core/capture.py"):
+        assert f in names, names
+    assert not any("__pycache__" in n for n in names)
+    ext = next((ROOT / ".venv" / "lib").glob("python3*/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+    proc = subprocess.run([str(PYTHON), str(ext), "validate", str(extension_zip)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_extension_installs_and_registers(extension_zip, tmp_path):
+    user = tmp_path / "user"
+    out = run_worker("install", user, zip=str(extension_zip))
+    assert "bl_ext.user_default.hairrecon" in out["enabled"], out
+    assert out["has_operator"]
+    # the Rust module comes from the wheel bundled in the extension, installed in the user folder
+    assert str(user) in out["module_file"], out["module_file"]
+
+
+@pytest.fixture(scope="module")
+def pipeline(extension_zip, test_capture, tmp_path_factory):
+    work = tmp_path_factory.mktemp("pipeline")
+    return run_worker(
+        "pipeline", work / "user", timeout=900, zip=str(extension_zip), capture=str(test_capture),
+        workdir=str(work), save_blend=str(work / "scene.blend"), **SMALL,
+    )
+
+
+def test_import_capture_builds_the_scene(pipeline, test_capture):
+    spec = json.loads((Path(test_capture) / "capture.json").read_text())
+    imp = pipeline["import"]
+    assert imp["error"] is None and imp["result"] == ["FINISHED"]
+    panel = pipeline["panel_after_import"]
+    assert panel["cameras"] == len(spec["views"])
+    assert panel["raw_mesh"] and panel["scalp"], panel
+    assert panel["resolution"] == [spec["views"][0]["width"], spec["views"][0]["height"]]
+    if spec.get("scalp_mesh"):
+        assert panel["scalp_uv_maps"], "the scalp's UVs were not imported"
+    assert len(imp["snapshot"]["images"]) >= len(spec["views"])  # the photos, as background images
+    # the cameras Blender now holds give back the capture's K, R, t
+    assert pipeline["camera_roundtrip"]["K_max_abs"] < 1e-2
+    assert pipeline["camera_roundtrip"]["Rt_max_abs"] < 1e-5
+
+
+def test_reconstruct_adds_hair_attached_to_the_scalp(pipeline):
+    run = pipeline["runs"][0]
+    assert run["error"] is None and run["result"] == ["FINISHED"], run["error"]
+    assert not any(run["gone"].values()), run["gone"]
+    assert len(run["new"]["objects"]) == 2 and len(run["new"]["hair_curves"]) == 2, run["new"]
+    by_name = {c["name"]: c for c in run["curves"]}
+    guides = [c for n, c in by_name.items() if n.endswith("Guides")]
+    children = [c for n, c in by_name.items() if not n.endswith("Guides")]
+    assert len(guides) == 1 and len(children) == 1
+    assert guides[0]["curves"] == SMALL["guides"]
+    assert children[0]["curves"] == SMALL["children"]
+    for c in run["curves"]:
+        assert c["surface"] == pipeline["panel_after_import"]["scalp"]
+        assert c["uv_map_exists"] and c["uv_attr"] == ["CURVE", "FLOAT2"]
+        assert c["has_radius"] and 0 < c["radius_range"][0] <= c["radius_range"][1] < 1e-3
+        assert "ShaderNodeBsdfHairPrincipled" in c["material_nodes"]
+        assert c["root_dist_max_mm"] < 1.0, c  # every root within 1 mm of the scalp
+        assert min(c["uv_min"]) >= 0.0 and max(c["uv_max"]) <= 1.0
+        assert c["uv_outside_map_max"] < 1e-6  # every UV lies on a triangle of the scalp's UV map
+        assert c["uv_back_to_closest_max_mm"] < 0.05  # the UV's surface point is the root's closest point
+        assert c["uv_back_to_root_max_mm"] < 1.0
+
+
+def test_blenders_attach_node_moves_the_hair_with_the_scalp(pipeline):
+    a = pipeline["attach_node"]
+    assert "Surface" in a["inputs"]
+    # the scalp moved 10 mm up; every point of every curve moved with it
+    assert a["moved_err_max_mm"] < 0.05, a
+
+
+def test_running_twice_gives_two_results_and_keeps_the_scene(pipeline):
+    first, second = pipeline["runs"]
+    assert second["error"] is None, second["error"]
+    assert len(second["new"]["objects"]) == 2 and not set(second["new"]["objects"]) & set(first["new"]["objects"])
+    assert not any(second["gone"].values()), second["gone"]
+
+
+def test_export_hair_writes_what_blender_holds(pipeline):
+    exp = pipeline["export"]
+    for ext in (".hair", ".data", ".ply"):
+        e = exp[ext]
+        assert e["error"] is None, (ext, e)
+        assert e["curves"] == SMALL["children"]
+        assert e["max_diff_m"] < 1e-6
+    assert exp[".abc"]["error"] and "Alembic" in exp[".abc"]["error"]
+
+
+def test_cancel_leaves_the_scene_unchanged(extension_zip, test_capture, tmp_path):
+    out = run_worker("cancel", tmp_path / "user", zip=str(extension_zip), capture=str(test_capture),
+                     cancel_after=0.1, **SMALL)
+    assert out["raised"] and out["raised"].startswith("Cancelled"), out["raised"]
+    assert out["unchanged"] and out["temp_removed"]
+    assert out["stop_seconds"] < 30
+
+
+def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_path):
+    out = run_worker("bad_inputs", tmp_path / "user", zip=str(extension_zip), workdir=str(tmp_path))
+    expect = {
+        "no_cameras": "holds no cameras",
+        "no_photo": "'cam0' has no photo",
+        "no_faces": "'points' has no faces",
+        "zero_focal": "focal length",
+        "ortho": "not perspective",
+        "no_scalp": "no scalp",
+    }
+    for name, words in expect.items():
+        c = out["cases"][name]
+        assert c["result"] is None and c["error"] and words in c["error"], (name, c)
+        assert c["error"].count("\n") == 0, (name, c["error"])  # one message
+        assert c["unchanged"], name
+
+
+def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
+    blend = pipeline["saved"]
+    user = tmp_path / "user"
+    run_worker("install", user, zip=str(extension_zip))  # the batch run uses the installed extension
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(user))
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [str(PYTHON), str(ROOT / "scripts" / "reconstruct.py"), blend, "--out", str(out),
+         "--guides", str(SMALL["guides"]), "--children", str(SMALL["children"])],
+        capture_output=True, text=True, env=env, timeout=900,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "hairrecon:" in proc.stdout and "%" in proc.stdout  # progress lines
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["strands"]["count"] == SMALL["children"]
+    assert (out / "scene.blend").is_file() and (out / "strands.hair").is_file() and (out / "guides.hair").is_file()
+    # a failing run exits non-zero with one clear message
+    bad = subprocess.run(
+        [str(PYTHON), str(ROOT / "scripts" / "reconstruct.py"), blend, "--out", str(tmp_path / "bad"),
+         "--cameras", "NoSuchCollection"],
+        capture_output=True, text=True, env=env, timeout=300,
+    )
+    assert bad.returncode != 0
+    assert "NoSuchCollection" in bad.stderr, bad.stderr[-2000:]
