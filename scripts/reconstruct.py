@@ -1,0 +1,189 @@
+#!/usr/bin/env python3
+"""Batch hair reconstruction of a .blend scene set up with the hairrecon extension's Hair panel.
+
+    blender -b scene.blend -P scripts/reconstruct.py -- --out DIR [options]
+    .venv/bin/python scripts/reconstruct.py scene.blend --out DIR [options]     (the bpy module)
+
+Loads the scene, runs ``bpy.ops.hairrecon.reconstruct()`` synchronously with the settings saved in
+the .blend (Hair panel) or the overrides below, and writes into DIR:
+
+    scene.blend         the scene with the hair Curves objects added
+    strands.hair        the strands (children), world space, root to tip
+    guides.hair         the guide strands
+    summary.json        counts, root distances, stage times, metrics
+    capture/, result/   the capture folder written from the scene and the library's own output
+
+Progress goes to stdout; on failure it prints one ``error: ...`` line to stderr and exits 1.
+The add-on comes from the installed extension (bl_ext.*.hairrecon), else from this source tree
+(``addon/hairrecon``, with the ``hairrecon`` Python module installed in the running Python).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def parse_args(argv):
+    ap = argparse.ArgumentParser(prog="reconstruct.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("blend", nargs="?", type=Path, help="the .blend to load (omit under `blender -b scene.blend`)")
+    ap.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    ap.add_argument("--cameras", help="name of the collection of cameras")
+    ap.add_argument("--raw-mesh", help="name of the raw mesh object")
+    ap.add_argument("--scalp", help="name of the scalp mesh object")
+    ap.add_argument("--head", help="name of the head mesh object (with --scalp-group)")
+    ap.add_argument("--scalp-group", help="vertex group of --head that is the scalp")
+    ap.add_argument("--photos", help="folder of photos named after the cameras")
+    ap.add_argument("--masks", help="folder of hair masks named after the cameras")
+    ap.add_argument("--quality", choices=["PREVIEW", "STANDARD", "HIGH"])
+    ap.add_argument("--guides", type=int)
+    ap.add_argument("--children", type=int)
+    ap.add_argument("--iterations", type=int)
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--stop-after", help="stop the pipeline after this stage")
+    return ap.parse_args(argv)
+
+
+def script_args() -> list[str]:
+    argv = sys.argv
+    if "--" in argv:
+        return argv[argv.index("--") + 1:]
+    return argv[1:]
+
+
+class Failure(Exception):
+    pass
+
+
+def ensure_addon(bpy):
+    """Makes bpy.ops.hairrecon available: an enabled or installed extension, else the source tree."""
+    if hasattr(bpy.types, "HAIRRECON_OT_reconstruct"):
+        return "already enabled"
+    import addon_utils
+
+    for mod in addon_utils.modules(refresh=True):
+        if mod.__name__.startswith("bl_ext.") and mod.__name__.endswith(".hairrecon"):
+            addon_utils.enable(mod.__name__, default_set=False, handle_error=None)
+            if hasattr(bpy.types, "HAIRRECON_OT_reconstruct"):
+                return mod.__name__
+    # the source tree, under a name that does not hide the `hairrecon` library module
+    pkg = ROOT / "addon" / "hairrecon"
+    spec = importlib.util.spec_from_file_location("hairrecon_addon", pkg / "__init__.py", submodule_search_locations=[str(pkg)])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["hairrecon_addon"] = mod
+    spec.loader.exec_module(mod)
+    mod.register()
+    return str(pkg)
+
+
+def apply_overrides(bpy, a):
+    s = bpy.context.scene.hairrecon
+
+    def obj(name, what):
+        o = bpy.data.objects.get(name)
+        if o is None:
+            raise Failure(f"--{what}: the scene has no object named {name!r}")
+        return o
+
+    if a.cameras:
+        c = bpy.data.collections.get(a.cameras)
+        if c is None:
+            raise Failure(f"--cameras: the scene has no collection named {a.cameras!r}")
+        s.camera_collection = c
+    if a.raw_mesh:
+        s.raw_mesh = obj(a.raw_mesh, "raw-mesh")
+    if a.scalp:
+        s.scalp_source, s.scalp_object = "OBJECT", obj(a.scalp, "scalp")
+    if a.head or a.scalp_group:
+        if not (a.head and a.scalp_group):
+            raise Failure("--head and --scalp-group go together")
+        s.scalp_source, s.head_object, s.scalp_vertex_group = "VERTEX_GROUP", obj(a.head, "head"), a.scalp_group
+    if a.photos:
+        s.photo_folder = str(Path(a.photos).resolve())
+    if a.masks:
+        s.mask_folder = str(Path(a.masks).resolve())
+    if a.quality:
+        s.quality = a.quality
+    for k in ("guides", "children", "iterations"):
+        if getattr(a, k) is not None:
+            s.quality = "CUSTOM"
+            setattr(s, k, getattr(a, k))
+    if a.seed is not None:
+        s.seed = a.seed
+    if a.stop_after is not None:
+        s.stop_after = a.stop_after
+
+
+def write_strands(hr, path: Path, obj):
+    import numpy as np
+
+    cv = obj.data
+    p = np.empty(len(cv.points) * 3, np.float32)
+    cv.attributes["position"].data.foreach_get("vector", p)
+    off = np.empty(len(cv.curves) + 1, np.int32)
+    cv.curve_offset_data.foreach_get("value", off)
+    m = np.array(obj.matrix_world, np.float64)
+    world = (p.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+    hr.write_strands(str(path), np.ascontiguousarray(world), np.diff(off).astype(np.uint32))
+
+
+def run(a) -> dict:
+    import bpy
+
+    if a.blend is not None:
+        if not a.blend.is_file():
+            raise Failure(f"{a.blend} does not exist")
+        bpy.ops.wm.open_mainfile(filepath=str(a.blend.resolve()))
+    elif not bpy.data.filepath:
+        raise Failure("no .blend given: pass the scene file (or run `blender -b scene.blend -P reconstruct.py -- ...`)")
+    source = ensure_addon(bpy)
+    print(f"hairrecon: add-on from {source}; scene {bpy.data.filepath}", flush=True)
+    apply_overrides(bpy, a)
+    out = a.out.resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    before = {o.name for o in bpy.data.objects}
+    try:
+        bpy.ops.hairrecon.reconstruct(output_directory=str(out))
+    except RuntimeError as e:
+        msg = str(e).strip()
+        msg = msg[len("Error: "):] if msg.startswith("Error: ") else msg
+        raise Failure(msg.splitlines()[0] if msg else "the reconstruction failed") from None
+    new = [bpy.data.objects[n] for n in sorted({o.name for o in bpy.data.objects} - before)]
+    hair = [o for o in new if o.type == "CURVES"]
+    if not hair:
+        raise Failure("the reconstruction added no hair objects")
+    import hairrecon as hr
+
+    summary = {"blend": bpy.data.filepath, "objects": [o.name for o in hair]}
+    for o in hair:
+        key = "guides" if o.name.endswith("Guides") else "strands"
+        path = out / f"{key}.hair"
+        write_strands(hr, path, o)
+        summary[key] = {"object": o.name, "count": len(o.data.curves), "points": len(o.data.points), "file": str(path)}
+    bpy.ops.wm.save_as_mainfile(filepath=str(out / "scene.blend"), copy=True)
+    summary["saved"] = str(out / "scene.blend")
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def main() -> int:
+    a = parse_args(script_args())
+    try:
+        summary = run(a)
+    except Failure as e:
+        print(f"error: {e}", file=sys.stderr, flush=True)
+        return 1
+    print(f"hairrecon: wrote {summary['saved']} and " + ", ".join(
+        f"{summary[k]['count']} {k} to {summary[k]['file']}" for k in ("strands", "guides") if k in summary), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    code = main()
+    sys.stdout.flush()
+    sys.exit(code)
