@@ -32,19 +32,22 @@ class Created:
 
     def remove(self):
         for db in reversed(self.items):
-            try:
-                coll = {
-                    bpy.types.Object: bpy.data.objects,
-                    bpy.types.Curves: bpy.data.hair_curves,
-                    bpy.types.Mesh: bpy.data.meshes,
-                    bpy.types.Material: bpy.data.materials,
-                    bpy.types.Camera: bpy.data.cameras,
-                    bpy.types.Image: bpy.data.images,
-                    bpy.types.Collection: bpy.data.collections,
-                }[type(db)]
-                coll.remove(db)
-            except (KeyError, ReferenceError, RuntimeError):
-                pass
+            for kind, coll in (
+                (bpy.types.Object, bpy.data.objects),
+                (bpy.types.Curves, bpy.data.hair_curves),
+                (bpy.types.Mesh, bpy.data.meshes),
+                (bpy.types.Material, bpy.data.materials),
+                (bpy.types.Camera, bpy.data.cameras),
+                (bpy.types.Image, bpy.data.images),
+                (bpy.types.Collection, bpy.data.collections),
+                (bpy.types.NodeTree, bpy.data.node_groups),
+            ):
+                try:
+                    if isinstance(db, kind):
+                        coll.remove(db)
+                        break
+                except (ReferenceError, RuntimeError):
+                    break
         self.items.clear()
 
 
@@ -96,6 +99,12 @@ def attach(points_local: np.ndarray, counts: np.ndarray, surface: bpy.types.Obje
     """For each strand root (surface-local): (uv (S,2), distance to the surface (S,), closest point
     (S,3)). The UV is that of the closest point on the surface mesh, in its active UV map."""
     co, tri_v, tri_uv = surface_triangles(surface)
+    # degenerate triangles (e.g. at a UV sphere's poles) have no meaningful barycentric UV: skip them
+    area2 = np.linalg.norm(np.cross(co[tri_v[:, 1]] - co[tri_v[:, 0]], co[tri_v[:, 2]] - co[tri_v[:, 0]]), axis=1)
+    good = area2 > 1e-7 * max(float(area2.max(initial=0.0)), 1e-30)
+    tri_v, tri_uv = tri_v[good], tri_uv[good]
+    if len(tri_v) == 0:
+        raise ValueError(f"the scalp {surface.name!r} has no faces with an area")
     bvh = BVHTree.FromPolygons([tuple(p) for p in co], [tuple(t) for t in tri_v], all_triangles=True)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     roots = points_local[starts]
@@ -141,7 +150,18 @@ def new_hair_curves(
 ) -> bpy.types.Curves:
     """A Curves datablock with the strands (surface-local positions) and a tapering radius."""
     cv = bpy.data.hair_curves.new(name)
+    try:
+        _fill_curves(cv, points_local, counts, root_radius, tip_radius)
+    except BaseException:
+        bpy.data.hair_curves.remove(cv)
+        raise
+    return cv
+
+
+def _fill_curves(cv, points_local, counts, root_radius, tip_radius):
     counts = np.asarray(counts, dtype=np.int64)
+    if len(points_local) != int(counts.sum()):
+        raise ValueError(f"{len(points_local)} points but the strand counts add up to {int(counts.sum())}")
     cv.add_curves([int(c) for c in counts])
     cv.attributes["position"].data.foreach_set("vector", np.ascontiguousarray(points_local, np.float32).ravel())
     # radius tapers linearly from root to tip along each strand's point index
@@ -152,7 +172,27 @@ def new_hair_curves(
     radius = (root_radius + (tip_radius - root_radius) * s).astype(np.float32)
     attr = cv.attributes.get("radius") or cv.attributes.new("radius", "FLOAT", "POINT")
     attr.data.foreach_set("value", radius)
-    return cv
+
+
+DEFORM_GROUP = "hairrecon Surface Deform"
+
+
+def surface_deform_group(created: Created) -> bpy.types.NodeTree:
+    """A geometry node group with Blender's "Deform Curves on Surface" node: hair follows the
+    scalp's deformation through ``surface_uv_coordinate`` (as Blender's own new hair objects do)."""
+    ng = bpy.data.node_groups.get(DEFORM_GROUP)
+    if ng is not None and any(n.bl_idname == "GeometryNodeDeformCurvesOnSurface" for n in ng.nodes):
+        return ng
+    ng = created.add(bpy.data.node_groups.new(DEFORM_GROUP, "GeometryNodeTree"))
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gi = ng.nodes.new("NodeGroupInput")
+    go = ng.nodes.new("NodeGroupOutput")
+    de = ng.nodes.new("GeometryNodeDeformCurvesOnSurface")
+    gi.location, de.location, go.location = (-300, 0), (0, 0), (300, 0)
+    ng.links.new(gi.outputs[0], de.inputs[0])
+    ng.links.new(de.outputs[0], go.inputs[0])
+    return ng
 
 
 def add_hair_object(
@@ -183,6 +223,8 @@ def add_hair_object(
     collection.objects.link(obj)
     obj.parent = surface
     obj.matrix_parent_inverse = Matrix.Identity(4)
+    mod = obj.modifiers.new("Surface Deform", "NODES")
+    mod.node_group = surface_deform_group(created)
     # distances in world units (the surface may be scaled)
     scale = float(np.cbrt(abs(np.linalg.det(m[:3, :3]))))
     return obj, dist_local * scale

@@ -206,8 +206,11 @@ class Session:
                 pts, counts = hr.read_strands(str(p))
                 if len(counts) == 0:
                     raise UserError(f"the reconstruction's {k} file {p} holds no strands")
+                if not np.isfinite(pts).all():
+                    raise UserError(f"the reconstruction's {k} file {p} holds points that are not finite numbers")
                 sets[k] = (np.asarray(pts, np.float32).reshape(-1, 3), np.asarray(counts, np.int64))
             had_uv = surface.data.uv_layers.active is not None
+            had_rest = surface.add_rest_position_attribute
             uv_layer_name = scene_build.ensure_uv_map(surface, self.group or None)
             try:
                 material = created.add(scene_build.hair_material("Hair"))
@@ -223,7 +226,10 @@ class Session:
                         obj.hide_render = True
                     summary["objects"].append(obj.name)
                     summary[k] = {"object": obj.name, "count": int(len(counts)), "max_root_distance_m": float(dist.max())}
+                # the Deform Curves on Surface node needs the scalp's rest position
+                surface.add_rest_position_attribute = True
             except Exception:
+                surface.add_rest_position_attribute = had_rest
                 if not had_uv:
                     layer = surface.data.uv_layers.get(uv_layer_name)
                     if layer is not None:

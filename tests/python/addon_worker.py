@@ -132,10 +132,26 @@ def snapshot() -> dict:
     return snap
 
 
+_PACKAGE = {"name": "bl_ext.user_default.hairrecon"}
+
+
 def install(zip_path: str) -> dict:
-    """Installs the extension zip into the user folder (BLENDER_USER_RESOURCES) and enables it."""
+    """Installs the extension zip into the user folder (BLENDER_USER_RESOURCES) and enables it.
+    Without a zip (development only), registers addon/hairrecon from the source tree instead."""
     import addon_utils
 
+    if not zip_path:
+        pkg = ROOT / "addon" / "hairrecon"
+        spec = importlib.util.spec_from_file_location("hairrecon_addon", pkg / "__init__.py", submodule_search_locations=[str(pkg)])
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules["hairrecon_addon"] = mod
+        spec.loader.exec_module(mod)
+        mod.register()
+        _PACKAGE["name"] = "hairrecon_addon"
+        import hairrecon
+
+        return {"result": ["SOURCE"], "enabled": [], "module_file": hairrecon.__file__, "version": hairrecon.__version__,
+                "has_operator": hasattr(bpy.types, "HAIRRECON_OT_reconstruct"), "addon_module": []}
     res = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
     enabled = sorted(m for m in bpy.context.preferences.addons.keys())
     import hairrecon  # the Rust module, from the extension's wheel
@@ -153,7 +169,7 @@ def install(zip_path: str) -> dict:
 def extension_package():
     import importlib
 
-    return importlib.import_module("bl_ext.user_default.hairrecon")
+    return importlib.import_module(_PACKAGE["name"])
 
 
 def run_op(op, **kw):
@@ -217,7 +233,8 @@ def curves_report(obj) -> dict:
     out["uv_map_exists"] = layer is not None
     # distance of every root to the scalp surface, world space
     bvh = BVHTree.FromPolygons(co_w.tolist(), tri_v.tolist(), all_triangles=True)
-    d = np.array([bvh.find_nearest(r.tolist())[3] for r in roots])
+    hits = [bvh.find_nearest(r.tolist()) for r in roots]
+    d = np.array([h[3] if h[0] is not None else np.inf for h in hits], dtype=float)
     out["root_dist_max_mm"] = float(1000 * d.max())
     out["root_dist_median_mm"] = float(1000 * np.median(d))
     if "surface_uv_coordinate" not in cv.attributes or layer is None:
@@ -257,46 +274,76 @@ def curves_report(obj) -> dict:
     return out
 
 
-def attach_node_check(obj, offset=(0.0, 0.0, 0.01)) -> dict:
-    """Adds Blender's own "Attach Hair Curves to Surface" node group as a modifier, moves the
-    surface's mesh by `offset` with a shape-key-free Displace-like edit on an evaluated copy, and checks
-    the evaluated roots followed (the node finds each root through its UV)."""
+def attach_node_check(obj, offset=0.01) -> dict:
+    """Blender's own use of the attachment:
+    (1) the "Attach Hair Curves to Surface" node group (from Blender's hair assets), told to sample
+        the UV at each root itself, must find the UVs the add-on stored in surface_uv_coordinate;
+    (2) the result's "Surface Deform" modifier (Deform Curves on Surface, driven by the stored UVs)
+        must carry the hair along when the scalp moves: a Displace modifier lifts it by `offset`."""
+    cv = obj.data
+    surf = cv.surface
     path = Path(bpy.utils.system_resource("DATAFILES")) / "assets" / "nodes" / "procedural_hair_node_assets.blend"
     with bpy.data.libraries.load(str(path), link=False) as (src, dst):
         dst.node_groups = [n for n in src.node_groups if n == "Attach Hair Curves to Surface"]
     ng = dst.node_groups[0]
-    cv = obj.data
-    surf = cv.surface
+    items = [it for it in ng.interface.items_tree if it.item_type == "SOCKET"]
+    inputs = {(it.name, it.socket_type): it.identifier for it in items if it.in_out == "INPUT"}
+    ids = {name: ident for (name, _), ident in inputs.items()}
+    uv_out = next(it.identifier for it in items if it.in_out == "OUTPUT" and it.name == "Surface UV Coordinate")
     mod = obj.modifiers.new("attach", "NODES")
     mod.node_group = ng
-    ids = {it.name: it.identifier for it in ng.interface.items_tree if getattr(it, "in_out", "") == "INPUT"}
-    if "Surface" in ids:
-        mod[ids["Surface"]] = surf
-    if "Surface UV Map" in ids:
-        mod[ids["Surface UV Map"]] = cv.surface_uv_map
-    # deform the surface: a Displace modifier with no texture moves every vertex along Z by strength
-    disp = surf.modifiers.new("move", "DISPLACE")
-    disp.direction = "Z"
-    disp.mid_level = 0.0
-    disp.strength = offset[2]
+    mod[inputs[("Surface", "NodeSocketObject")]] = surf
+    mod[ids["Surface UV Map"] + "_use_attribute"] = True
+    mod[ids["Surface UV Map"] + "_attribute_name"] = cv.surface_uv_map
+    mod[ids["Sample Attachment UV"]] = True
+    mod[ids["Snap to Surface"]] = False
+    mod[ids["Align to Surface Normal"]] = False
+    mod[uv_out + "_attribute_name"] = "blender_uv"
     bpy.context.view_layer.update()
-    dg = bpy.context.evaluated_depsgraph_get()
-    ev = obj.evaluated_get(dg)
-    ecv = ev.data
-    n = len(ecv.points)
-    p_ev = np.empty(n * 3, np.float32)
-    ecv.attributes["position"].data.foreach_get("vector", p_ev)
-    p0 = np.empty(len(cv.points) * 3, np.float32)
-    cv.attributes["position"].data.foreach_get("vector", p0)
-    d = p_ev.reshape(-1, 3) - p0.reshape(-1, 3)
-    surf.modifiers.remove(disp)
+    ecv = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    out = {"attach_inputs": sorted(ids)}
+    n = len(cv.curves)
+    ours = np.empty(n * 2, np.float32)
+    cv.attributes["surface_uv_coordinate"].data.foreach_get("vector", ours)
+    a = ecv.attributes.get("blender_uv")
+    out["blender_uv_domain"] = a.domain if a else None
+    if a is not None:
+        vals = np.empty(len(a.data) * 3, np.float32)
+        a.data.foreach_get("vector", vals)
+        vals = vals.reshape(len(a.data), 3)
+        if a.domain == "POINT":  # one value per point: take the roots
+            off = np.empty(n + 1, np.int32)
+            cv.curve_offset_data.foreach_get("value", off)
+            vals = vals[off[:-1]]
+        diff = np.abs(vals[:, :2] - ours.reshape(-1, 2)).max(axis=1)
+        out["uv_vs_blender_median"] = float(np.median(diff))
+        out["uv_vs_blender_p99"] = float(np.quantile(diff, 0.99))
     obj.modifiers.remove(mod)
     bpy.data.node_groups.remove(ng)
-    # the surface object's local Z, in curves-local space: the curves are parented with identity
-    sm = np.array(surf.matrix_world)[:3, :3]
-    want = np.array([0.0, 0.0, offset[2]])
-    return {"inputs": sorted(ids), "moved_err_max_mm": float(1000 * np.abs(d - want).max()),
-            "moved_mean_mm": (1000 * d.mean(axis=0)).tolist()}
+
+    deform = [m.name for m in obj.modifiers if m.type == "NODES" and m.node_group and any(
+        nd.bl_idname == "GeometryNodeDeformCurvesOnSurface" for nd in m.node_group.nodes)]
+    out["deform_modifiers"] = deform
+    out["rest_position"] = bool(surf.add_rest_position_attribute)
+    p0 = np.empty(len(cv.points) * 3, np.float32)
+    cv.attributes["position"].data.foreach_get("vector", p0)
+
+    def evaluated():
+        bpy.context.view_layer.update()
+        e = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+        p = np.empty(len(e.points) * 3, np.float32)
+        e.attributes["position"].data.foreach_get("vector", p)
+        return (p - p0).reshape(-1, 3)
+
+    out["still_max_mm"] = float(1000 * np.abs(evaluated()).max())
+    disp = surf.modifiers.new("move", "DISPLACE")
+    disp.direction, disp.mid_level, disp.strength = "Z", 0.0, offset
+    d = evaluated()
+    surf.modifiers.remove(disp)
+    want = np.array([0.0, 0.0, offset])  # curves-local = surface-local (parented, identity inverse)
+    out["moved_err_max_mm"] = float(1000 * np.abs(d - want).max())
+    out["moved_mean_mm"] = (1000 * d.mean(axis=0)).tolist()
+    return out
 
 
 def new_result_objects(before: dict) -> list:
@@ -308,7 +355,7 @@ def task_install(p):
 
 
 def task_pipeline(p):
-    out = {"install": install(p["zip"])}
+    out = {"install": install(p.get("zip"))}
     import hairrecon
 
     res, err = run_op(bpy.ops.hairrecon.import_capture, directory=p["capture"])
@@ -394,7 +441,7 @@ def task_pipeline(p):
 
 
 def task_cancel(p):
-    out = {"install": install(p["zip"])}
+    out = {"install": install(p.get("zip"))}
     run_op(bpy.ops.hairrecon.import_capture, directory=p["capture"])
     configure(p)
     import hairrecon
@@ -455,7 +502,7 @@ def base_scene(tmp: Path):
 
 
 def task_bad_inputs(p):
-    out = {"install": install(p["zip"])}
+    out = {"install": install(p.get("zip"))}
     tmp = Path(p["workdir"])
     cases = {}
 
