@@ -497,6 +497,7 @@ def base_scene(tmp: Path):
     scalp.name = "scalp"
     s = scene.hairrecon
     s.camera_collection, s.raw_mesh, s.scalp_object = cams, raw, scalp
+    s.scalp_source, s.photo_folder, s.mask_folder = "OBJECT", "", ""
     configure({"guides": 10, "children": 10})
     return {"cams": cams, "cam": co, "raw": raw, "scalp": scalp, "image": img}
 
@@ -540,6 +541,90 @@ def task_bad_inputs(p):
                      ("zero_focal", zero_focal), ("ortho", ortho), ("no_scalp", no_scalp)):
         case(name, fn)
     out["cases"] = cases
+
+    # scenes that are fine: Session.prepare writes a capture the library accepts, changing nothing
+    from importlib import import_module
+
+    pkg = extension_package()
+    Session = import_module(pkg.__name__ + ".session").Session
+    capmod = import_module(pkg.__name__ + ".core.capture")
+    import hairrecon
+
+    def prepared(label, fn):
+        objs = base_scene(tmp)
+        extra = fn(objs) or {}
+        before = snapshot()
+        sess = Session.prepare(bpy.context)
+        spec = json.loads((sess.capture_dir / "capture.json").read_text())
+        info = {"views": [v["name"] for v in spec["views"]], **extra}
+        info.update(check(sess, spec, extra) if "check" in extra else {})
+        info.pop("check", None)
+        sess.cleanup()
+        info["unchanged"] = snapshot() == before
+        prep[label] = info
+
+    prep = {}
+    prepared("baseline", lambda o: None)
+
+    photo = (np.arange(96 * 64 * 3) % 251).astype(np.uint8).reshape(96, 64, 3)
+    mask = np.zeros((96, 64), np.uint8)
+    mask[20:60, 10:50] = 255
+
+    def folders(o):
+        (tmp / "photos").mkdir(exist_ok=True)
+        (tmp / "masks").mkdir(exist_ok=True)
+        capmod.write_png(tmp / "photos" / "cam0.png", photo)
+        capmod.write_png(tmp / "masks" / "cam0.png", mask)
+        o["cam"].data.background_images.clear()
+        s = bpy.context.scene.hairrecon
+        s.photo_folder, s.mask_folder = str(tmp / "photos"), str(tmp / "masks")
+        return {"check": True}
+
+    def check(sess, spec, extra):
+        v = spec["views"][0]
+        out = {}
+        if "mask" in v:
+            img = bpy.data.images.load(str(sess.capture_dir / v["image"]))
+            px = np.empty(64 * 96 * 4, np.float32)
+            img.pixels.foreach_get(px)
+            got = (px.reshape(96, 64, 4)[::-1, :, :3] * 255 + 0.5).astype(np.uint8)
+            bpy.data.images.remove(img)
+            out["image_equal"] = bool(np.array_equal(got, photo))
+            m = bpy.data.images.load(str(sess.capture_dir / v["mask"]))
+            m.colorspace_settings.is_data = True
+            px = np.empty(64 * 96 * 4, np.float32)
+            m.pixels.foreach_get(px)
+            gotm = (px.reshape(96, 64, 4)[::-1, :, 0] * 255 + 0.5).astype(np.uint8)
+            bpy.data.images.remove(m)
+            out["mask_equal"] = bool(np.array_equal(gotm, mask))
+        if extra.get("group_triangles"):
+            sc = hairrecon.read_mesh(str(sess.capture_dir / spec["scalp_mesh"]))
+            out["scalp_triangles"] = int(len(sc["triangles"]))
+            out["scalp_has_uv"] = sc.get("uvs") is not None
+            out["head_mesh"] = bool(spec.get("head_mesh"))
+        return out
+
+    prepared("folders", folders)
+
+    def vertex_group(o):
+        bpy.ops.mesh.primitive_ico_sphere_add(radius=0.09, subdivisions=3)
+        head = bpy.context.active_object
+        head.name = "head"
+        me = head.data
+        while me.uv_layers:
+            me.uv_layers.remove(me.uv_layers[0])
+        vg = head.vertex_groups.new(name="scalp")
+        top = [v.index for v in me.vertices if v.co.z > 0.03]
+        vg.add(top, 1.0, "REPLACE")
+        s = bpy.context.scene.hairrecon
+        s.scalp_source, s.head_object, s.scalp_vertex_group = "VERTEX_GROUP", head, "scalp"
+        topset = set(top)
+        me.calc_loop_triangles()
+        n = sum(all(i in topset for i in t.vertices) for t in me.loop_triangles)
+        return {"group_triangles": n, "check": True}
+
+    prepared("vertex_group", vertex_group)
+    out["prepare"] = prep
     return out
 
 

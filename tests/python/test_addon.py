@@ -312,8 +312,17 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
     for name, words in expect.items():
         c = out["cases"][name]
         assert c["result"] is None and c["error"] and words in c["error"], (name, c)
-        assert c["error"].count("\n") == 0, (name, c["error"])  # one message
+        assert c["error"].strip().count("\n") == 0, (name, c["error"])  # one message
         assert c["unchanged"], name
+    ok = out["prepare"]
+    # the unbroken scene is accepted: its capture passes the library's validation
+    assert ok["baseline"]["views"] == ["cam0"] and ok["baseline"]["unchanged"]
+    # a photo found by name in the Photos folder, a mask from the Masks folder
+    assert ok["folders"]["image_equal"] and ok["folders"]["mask_equal"] and ok["folders"]["unchanged"]
+    # the scalp as a vertex group of a head mesh without UVs: the capture gets that region with UVs
+    vg = ok["vertex_group"]
+    assert vg["scalp_triangles"] == vg["group_triangles"] > 0 and vg["scalp_has_uv"] and vg["head_mesh"]
+    assert vg["unchanged"]
 
 
 def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
