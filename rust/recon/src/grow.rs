@@ -1,0 +1,202 @@
+//! Stage 5b: guide strands grown through the flow, and child strands interpolated from them.
+//!
+//! In: the [`FlowField`] of [`crate::laplace`] and [`Roots`] on the scalp (guides and children).
+//! Out: guide and child [`StrandSet`]s, root first, saved as `guides.hair` and `strands.hair`.
+//!
+//! Follows Dr.Hair's strand initialization (`docs/method.md` §3). A guide starts at its root along
+//! S(p_s) and follows the unit field by midpoint (RK2) steps of `step`; the field is read by
+//! trilinear interpolation and a step never turns back on the last one (the field's sign is kept
+//! continuous). Growth stops when the strand leaves the hair volume (more than `outer_margin`
+//! outside the raw mesh), when the field vanishes, or at `max_length`. Points that enter the head
+//! are pushed back out along the gradient of its distance. A child takes its `k` nearest guide
+//! roots with inverse-square-distance weights and follows their mean segment vectors step by step
+//! (a guide that has ended drops out of the mean), so children keep their guides' shape with their
+//! own root; its length is the weighted mean of the guides' lengths.
+//!
+//! The ablation ("w/o strand init.") is [`straight_strands`]: straight lines along the scalp
+//! normal, all of one length.
+
+use glam::Vec3;
+use hairrecon_core::StrandSet;
+use rayon::prelude::*;
+
+use crate::laplace::FlowField;
+use crate::metrics::PointIndex;
+use crate::progress::{Cancelled, Progress};
+use crate::roots::Roots;
+
+/// Parameters of growing.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GrowParams {
+    /// Integration step, metres.
+    pub step: f32,
+    pub max_length: f32,
+    /// Growth stops this far outside the raw mesh, metres.
+    pub outer_margin: f32,
+    /// Points are kept at least this far outside the head, metres.
+    pub head_clearance: f32,
+    /// Guides per child.
+    pub k: usize,
+}
+
+impl Default for GrowParams {
+    fn default() -> Self {
+        Self { step: 0.002, max_length: 0.6, outer_margin: 0.003, head_clearance: 0.001, k: 4 }
+    }
+}
+
+fn push_out(flow: &FlowField, p: Vec3, clearance: f32) -> Vec3 {
+    let Some(d) = flow.grid.trilinear(&flow.sd_inner, p) else { return p };
+    if d >= clearance {
+        return p;
+    }
+    let h = 0.5 * flow.grid.voxel;
+    let g = |a: Vec3| flow.grid.trilinear(&flow.sd_inner, p + a).unwrap_or(d);
+    let grad =
+        Vec3::new(g(Vec3::X * h) - g(-Vec3::X * h), g(Vec3::Y * h) - g(-Vec3::Y * h), g(Vec3::Z * h) - g(-Vec3::Z * h))
+            .normalize_or_zero();
+    p + grad * (clearance - d)
+}
+
+/// Grows one guide from `root` with start direction `start`.
+pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) -> Vec<Vec3> {
+    let mut pts = vec![root];
+    let mut p = root;
+    let mut prev = start.normalize_or(Vec3::Z);
+    let dir_at = |q: Vec3, prev: Vec3| -> Option<Vec3> {
+        let f = flow.grid.trilinear(&flow.field, q)?;
+        if f.length_squared() < 1e-6 {
+            return None;
+        }
+        let f = f.normalize();
+        Some(if f.dot(prev) < 0.0 { -f } else { f })
+    };
+    let max_steps = (params.max_length / params.step).ceil() as usize;
+    for s in 0..max_steps {
+        // Leave the root along S for the first steps, blending into the field.
+        let blend = if s < 3 { 0.5 } else { 0.0 };
+        let Some(d1) = dir_at(p, prev) else { break };
+        let d1 = (d1 * (1.0 - blend) + prev * blend).normalize();
+        let mid = p + d1 * (0.5 * params.step);
+        let Some(d2) = dir_at(mid, d1) else { break };
+        let d2 = (d2 * (1.0 - blend) + prev * blend).normalize();
+        let mut q = p + d2 * params.step;
+        q = push_out(flow, q, params.head_clearance);
+        let Some(so) = flow.grid.trilinear(&flow.sd_outer, q) else { break };
+        if so > params.outer_margin {
+            break;
+        }
+        let seg = q - p;
+        if seg.length_squared() < 1e-12 {
+            break;
+        }
+        prev = seg.normalize();
+        p = q;
+        pts.push(p);
+    }
+    if pts.len() < 2 {
+        pts.push(root + start.normalize_or(Vec3::Z) * params.step);
+    }
+    pts
+}
+
+/// Grows one guide per root, in parallel (cancellable between chunks).
+pub fn grow_guides(
+    flow: &FlowField,
+    roots: &Roots,
+    params: &GrowParams,
+    progress: &dyn Progress,
+) -> Result<StrandSet, Cancelled> {
+    let mut points = Vec::new();
+    let mut counts = Vec::new();
+    let chunk = 256;
+    for (ci, c) in (0..roots.len()).collect::<Vec<_>>().chunks(chunk).enumerate() {
+        progress.check()?;
+        progress.update("init", (ci * chunk) as f32 / roots.len().max(1) as f32, "growing guides");
+        let grown: Vec<Vec<Vec3>> =
+            c.par_iter().map(|&i| grow_one(flow, roots.positions[i], roots.growth[i], params)).collect();
+        for g in grown {
+            counts.push(g.len() as u32);
+            points.extend(g);
+        }
+    }
+    Ok(StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty()))
+}
+
+/// Interpolates children from guides (see the module doc).
+pub fn interpolate_children(
+    guides: &StrandSet,
+    roots: &Roots,
+    flow: Option<&FlowField>,
+    params: &GrowParams,
+    progress: &dyn Progress,
+) -> Result<StrandSet, Cancelled> {
+    if guides.is_empty() {
+        return Ok(StrandSet::empty());
+    }
+    let groots: Vec<Vec3> = guides.iter().map(|s| s[0]).collect();
+    let index = PointIndex::new(groots.clone(), vec![Vec3::Z; groots.len()]);
+    let mut points = Vec::new();
+    let mut counts = Vec::new();
+    let chunk = 4096;
+    for (ci, c) in (0..roots.len()).collect::<Vec<_>>().chunks(chunk).enumerate() {
+        progress.check()?;
+        progress.update("init", (ci * chunk) as f32 / roots.len().max(1) as f32, "interpolating children");
+        let made: Vec<Vec<Vec3>> = c
+            .par_iter()
+            .map(|&i| {
+                let root = roots.positions[i];
+                let nb = index.nearest(root, params.k);
+                let mut w: Vec<(usize, f32)> = nb.iter().map(|&(g, d)| (g, 1.0 / (d * d + 1e-8))).collect();
+                let ws: f32 = w.iter().map(|x| x.1).sum();
+                for x in &mut w {
+                    x.1 /= ws;
+                }
+                let len: f32 = w.iter().map(|&(g, wt)| guides.strand(g).len() as f32 * wt).sum();
+                let n = (len.round() as usize).max(2);
+                let mut pts = Vec::with_capacity(n);
+                pts.push(root);
+                let mut p = root;
+                for k in 1..n {
+                    let (mut acc, mut wa) = (Vec3::ZERO, 0.0);
+                    for &(g, wt) in &w {
+                        let s = guides.strand(g);
+                        if k < s.len() {
+                            acc += (s[k] - s[k - 1]) * wt;
+                            wa += wt;
+                        }
+                    }
+                    if wa <= 0.0 {
+                        break;
+                    }
+                    p += acc / wa;
+                    if let Some(f) = flow {
+                        p = push_out(f, p, params.head_clearance);
+                    }
+                    pts.push(p);
+                }
+                if pts.len() < 2 {
+                    pts.push(root + roots.growth[i] * params.step);
+                }
+                pts
+            })
+            .collect();
+        for g in made {
+            counts.push(g.len() as u32);
+            points.extend(g);
+        }
+    }
+    Ok(StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty()))
+}
+
+/// The ablation: straight strands along the scalp normal, `length` long, `segments` segments.
+pub fn straight_strands(roots: &Roots, length: f32, segments: usize) -> StrandSet {
+    let segments = segments.max(1);
+    let mut points = Vec::with_capacity(roots.len() * (segments + 1));
+    for i in 0..roots.len() {
+        for s in 0..=segments {
+            points.push(roots.positions[i] + roots.normals[i] * (length * s as f32 / segments as f32));
+        }
+    }
+    StrandSet::new(points, vec![segments as u32 + 1; roots.len()]).unwrap_or_else(|_| StrandSet::empty())
+}

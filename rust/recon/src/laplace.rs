@@ -1,0 +1,386 @@
+//! Stage 5a: the interior flow of the hair volume by Laplace's equation.
+//!
+//! In: the raw mesh (outer hair surface, a BVH), the head (or scalp) mesh as the inner surface,
+//! the directed points of [`crate::direction`] and the [`Scalp`] with S(p_s). Out: a [`FlowField`]
+//! on a voxel grid: a unit 3-vector per voxel of the hair volume, with the signed distances to the
+//! outer and inner surfaces that growing needs; saved as `flow.bin` and reloaded from there.
+//!
+//! Follows Dr.Hair's strand initialization (`docs/method.md` §3): the hair volume is the voxels
+//! inside the raw mesh (up to `outer_margin` outside it) and outside the head; Dirichlet conditions
+//! are the confidence-weighted mean direction of the directed points in a voxel, and S(p_s) at the
+//! voxels within one voxel of the scalp; every other voxel of the volume satisfies the discrete
+//! Laplace equation (6-neighbour graph Laplacian, zero flux across the volume's boundary). The three
+//! components are solved together by matrix-free conjugate gradients (a tiny diagonal shift keeps
+//! voxels cut off from every condition well posed), then normalised.
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use glam::Vec3;
+use hairrecon_core::Bvh;
+use rayon::prelude::*;
+
+use crate::points3d::{OrientedPoints, PointsError};
+use crate::progress::{Cancelled, Progress};
+use crate::roots::{scalp_point, Scalp};
+
+/// A regular grid: voxel centres at `origin + voxel * (i, j, k)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    pub origin: Vec3,
+    pub voxel: f32,
+    pub dims: [usize; 3],
+}
+
+impl Grid {
+    pub fn len(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    #[inline]
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        (k * self.dims[1] + j) * self.dims[0] + i
+    }
+
+    #[inline]
+    pub fn centre(&self, idx: usize) -> Vec3 {
+        let i = idx % self.dims[0];
+        let j = (idx / self.dims[0]) % self.dims[1];
+        let k = idx / (self.dims[0] * self.dims[1]);
+        self.origin + self.voxel * Vec3::new(i as f32, j as f32, k as f32)
+    }
+
+    /// The voxel containing `p` (nearest centre), if inside the grid.
+    #[inline]
+    pub fn voxel_of(&self, p: Vec3) -> Option<usize> {
+        let q = ((p - self.origin) / self.voxel + 0.5).floor();
+        if q.x < 0.0 || q.y < 0.0 || q.z < 0.0 {
+            return None;
+        }
+        let (i, j, k) = (q.x as usize, q.y as usize, q.z as usize);
+        if i >= self.dims[0] || j >= self.dims[1] || k >= self.dims[2] {
+            return None;
+        }
+        Some(self.index(i, j, k))
+    }
+
+    /// Trilinear interpolation of a per-voxel value; `None` outside the grid.
+    #[inline]
+    pub fn trilinear<T>(&self, values: &[T], p: Vec3) -> Option<T>
+    where
+        T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
+        let q = (p - self.origin) / self.voxel;
+        let f = q.floor();
+        if f.x < 0.0 || f.y < 0.0 || f.z < 0.0 {
+            return None;
+        }
+        let (i, j, k) = (f.x as usize, f.y as usize, f.z as usize);
+        if i + 1 >= self.dims[0] || j + 1 >= self.dims[1] || k + 1 >= self.dims[2] {
+            return None;
+        }
+        let t = q - f;
+        let v = |a: usize, b: usize, c: usize| values[self.index(i + a, j + b, k + c)];
+        let lx = |b: usize, c: usize| v(0, b, c) * (1.0 - t.x) + v(1, b, c) * t.x;
+        let ly = |c: usize| lx(0, c) * (1.0 - t.y) + lx(1, c) * t.y;
+        Some(ly(0) * (1.0 - t.z) + ly(1) * t.z)
+    }
+}
+
+/// Parameters of the volume and the solve.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LaplaceParams {
+    /// Voxel edge, metres.
+    pub voxel: f32,
+    /// Voxels up to this far outside the raw mesh belong to the hair volume, metres.
+    pub outer_margin: f32,
+    pub max_iterations: usize,
+    /// Relative residual at which CG stops.
+    pub tolerance: f32,
+}
+
+impl Default for LaplaceParams {
+    fn default() -> Self {
+        Self { voxel: 0.004, outer_margin: 0.004, max_iterations: 400, tolerance: 1e-4 }
+    }
+}
+
+/// The solved flow and the distances growing needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FlowField {
+    pub grid: Grid,
+    /// Unit direction per voxel (zero outside the hair volume where nothing reached).
+    pub field: Vec<Vec3>,
+    /// Signed distance to the raw mesh (negative inside), metres.
+    pub sd_outer: Vec<f32>,
+    /// Signed distance to the head/scalp (negative inside the head), metres.
+    pub sd_inner: Vec<f32>,
+    /// 1 for voxels of the hair volume, 2 for constrained ones, 0 elsewhere.
+    pub label: Vec<u8>,
+}
+
+/// Statistics of a solve.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LaplaceStats {
+    pub voxels: u64,
+    pub volume_voxels: u64,
+    pub point_constraints: u64,
+    pub scalp_constraints: u64,
+    pub iterations: u64,
+    pub residual: f32,
+}
+
+/// Builds the hair volume and solves the flow.
+pub fn solve_flow(
+    raw: &Bvh,
+    inner: &Bvh,
+    scalp: &Scalp,
+    points: &OrientedPoints,
+    params: &LaplaceParams,
+    progress: &dyn Progress,
+) -> Result<(FlowField, LaplaceStats), Cancelled> {
+    let (lo, hi) = raw.mesh().bbox();
+    let pad = 2.0 * params.voxel + params.outer_margin;
+    let origin = lo - Vec3::splat(pad);
+    let ext = hi + Vec3::splat(pad) - origin;
+    let dims = [
+        (ext.x / params.voxel).ceil() as usize + 1,
+        (ext.y / params.voxel).ceil() as usize + 1,
+        (ext.z / params.voxel).ceil() as usize + 1,
+    ];
+    let grid = Grid { origin, voxel: params.voxel, dims };
+    let n = grid.len();
+    let mut stats = LaplaceStats { voxels: n as u64, ..Default::default() };
+    // Signed distances, slab by slab (cancellable).
+    let slab = dims[0] * dims[1];
+    let mut sd_outer = vec![0.0f32; n];
+    let mut sd_inner = vec![0.0f32; n];
+    let far = 4.0 * params.voxel.max(0.01);
+    for k in 0..dims[2] {
+        progress.check()?;
+        progress.update("init", 0.4 * k as f32 / dims[2] as f32, "distances");
+        let r = k * slab..(k + 1) * slab;
+        sd_outer[r.clone()].par_iter_mut().zip(sd_inner[r.clone()].par_iter_mut()).enumerate().for_each(
+            |(o, (so, si))| {
+                let p = grid.centre(k * slab + o);
+                *so = raw.signed_distance(p, f32::INFINITY).unwrap_or(f32::INFINITY);
+                // Far from the head the sign is all that matters: clamp the search.
+                *si = match inner.signed_distance(p, far) {
+                    Some(d) => d,
+                    None => {
+                        let s = inner.signed_distance(p, f32::INFINITY).unwrap_or(1.0);
+                        if s < 0.0 {
+                            -far
+                        } else {
+                            far
+                        }
+                    }
+                };
+            },
+        );
+    }
+    // Labels and Dirichlet values.
+    let mut label = vec![0u8; n];
+    for i in 0..n {
+        if sd_outer[i] <= params.outer_margin && sd_inner[i] >= -0.5 * params.voxel {
+            label[i] = 1;
+        }
+    }
+    stats.volume_voxels = label.iter().filter(|l| **l > 0).count() as u64;
+    let mut fixed = vec![Vec3::ZERO; n];
+    let mut wsum = vec![0.0f32; n];
+    for i in 0..points.len() {
+        if let Some(v) = grid.voxel_of(points.positions[i]) {
+            if label[v] > 0 {
+                let w = points.confidence[i].max(1e-3);
+                fixed[v] += points.directions[i] * w;
+                wsum[v] += w;
+            }
+        }
+    }
+    for i in 0..n {
+        if wsum[i] > 0.0 {
+            fixed[i] = fixed[i].normalize_or_zero();
+            if fixed[i] != Vec3::ZERO {
+                label[i] = 2;
+                stats.point_constraints += 1;
+            }
+        }
+    }
+    progress.check()?;
+    let scalp_fixed: Vec<(usize, Vec3)> = (0..n)
+        .into_par_iter()
+        .filter(|&i| label[i] == 1)
+        .filter_map(|i| {
+            let sp = scalp_point(scalp, grid.centre(i), params.voxel)?;
+            Some((i, sp.growth))
+        })
+        .collect();
+    for (i, g) in scalp_fixed {
+        fixed[i] = g;
+        label[i] = 2;
+        stats.scalp_constraints += 1;
+    }
+    // Free unknowns.
+    let free: Vec<usize> = (0..n).filter(|&i| label[i] == 1).collect();
+    let mut slot = vec![u32::MAX; n];
+    for (s, &i) in free.iter().enumerate() {
+        slot[i] = s as u32;
+    }
+    let strides = [1isize, dims[0] as isize, slab as isize];
+    let nb_of = |i: usize| -> [Option<usize>; 6] {
+        let c = [i % dims[0], (i / dims[0]) % dims[1], i / slab];
+        let mut out = [None; 6];
+        for a in 0..3 {
+            if c[a] > 0 {
+                out[2 * a] = Some((i as isize - strides[a]) as usize);
+            }
+            if c[a] + 1 < dims[a] {
+                out[2 * a + 1] = Some((i as isize + strides[a]) as usize);
+            }
+        }
+        out
+    };
+    // Per free voxel: degree, and rhs from fixed neighbours.
+    let eps = 1e-4f32;
+    let (deg, rhs): (Vec<f32>, Vec<Vec3>) = free
+        .par_iter()
+        .map(|&i| {
+            let mut d = eps;
+            let mut b = Vec3::ZERO;
+            for j in nb_of(i).into_iter().flatten() {
+                match label[j] {
+                    1 => d += 1.0,
+                    2 => {
+                        d += 1.0;
+                        b += fixed[j];
+                    }
+                    _ => {}
+                }
+            }
+            (d, b)
+        })
+        .unzip();
+    let apply = |x: &[Vec3], out: &mut [Vec3]| {
+        out.par_iter_mut().enumerate().for_each(|(s, o)| {
+            let i = free[s];
+            let mut acc = x[s] * deg[s];
+            for j in nb_of(i).into_iter().flatten() {
+                let t = slot[j];
+                if t != u32::MAX {
+                    acc -= x[t as usize];
+                }
+            }
+            *o = acc;
+        });
+    };
+    let dot3 = |a: &[Vec3], b: &[Vec3]| -> Vec3 {
+        a.par_iter().zip(b).map(|(x, y)| *x * *y).reduce(|| Vec3::ZERO, |p, q| p + q)
+    };
+    // Jacobi-preconditioned CG, the three components at once.
+    let m = free.len();
+    let mut x = vec![Vec3::ZERO; m];
+    let mut r = rhs.clone();
+    let mut z: Vec<Vec3> = r.iter().zip(&deg).map(|(r, d)| *r / *d).collect();
+    let mut p = z.clone();
+    let mut ap = vec![Vec3::ZERO; m];
+    let mut rz = dot3(&r, &z);
+    let b_norm = dot3(&rhs, &rhs).max_element().sqrt().max(1e-20);
+    for it in 0..params.max_iterations {
+        if it % 20 == 0 {
+            progress.check()?;
+            progress.update("init", 0.4 + 0.4 * it as f32 / params.max_iterations as f32, "Laplace");
+        }
+        apply(&p, &mut ap);
+        let pap = dot3(&p, &ap);
+        let alpha = Vec3::select(pap.cmpgt(Vec3::splat(1e-30)), rz / pap, Vec3::ZERO);
+        x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * *p);
+        r.par_iter_mut().zip(&ap).for_each(|(r, ap)| *r -= alpha * *ap);
+        let res = dot3(&r, &r).max_element().sqrt() / b_norm;
+        stats.iterations = it as u64 + 1;
+        stats.residual = res;
+        if res < params.tolerance {
+            break;
+        }
+        z.par_iter_mut().zip(&r).zip(&deg).for_each(|((z, r), d)| *z = *r / *d);
+        let rz_new = dot3(&r, &z);
+        let beta = Vec3::select(rz.cmpgt(Vec3::splat(1e-30)), rz_new / rz, Vec3::ZERO);
+        rz = rz_new;
+        p.par_iter_mut().zip(&z).for_each(|(p, z)| *p = *z + beta * *p);
+    }
+    let mut field = vec![Vec3::ZERO; n];
+    for i in 0..n {
+        if label[i] == 2 {
+            field[i] = fixed[i];
+        }
+    }
+    for (s, &i) in free.iter().enumerate() {
+        field[i] = x[s].normalize_or_zero();
+    }
+    Ok((FlowField { grid, field, sd_outer, sd_inner, label }, stats))
+}
+
+impl FlowField {
+    /// Writes the field: a small header then little-endian arrays.
+    pub fn save(&self, path: &Path) -> Result<(), PointsError> {
+        let werr = |source| PointsError::Write { path: path.into(), source };
+        let f = std::fs::File::create(path).map_err(werr)?;
+        let mut w = std::io::BufWriter::new(f);
+        let mut buf = Vec::with_capacity(self.grid.len() * 21 + 64);
+        buf.extend_from_slice(b"HRFLOW01");
+        for d in self.grid.dims {
+            buf.extend_from_slice(&(d as u64).to_le_bytes());
+        }
+        for v in [self.grid.origin.x, self.grid.origin.y, self.grid.origin.z, self.grid.voxel] {
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
+        for i in 0..self.grid.len() {
+            let f = self.field[i];
+            for v in [f.x, f.y, f.z, self.sd_outer[i], self.sd_inner[i]] {
+                buf.extend_from_slice(&v.to_le_bytes());
+            }
+            buf.push(self.label[i]);
+        }
+        w.write_all(&buf).map_err(werr)?;
+        w.flush().map_err(werr)
+    }
+
+    /// Reads a field written by [`FlowField::save`].
+    pub fn load(path: &Path) -> Result<Self, PointsError> {
+        let mut bytes = Vec::new();
+        std::fs::File::open(path)
+            .and_then(|mut f| f.read_to_end(&mut bytes))
+            .map_err(|source| PointsError::Read { path: path.into(), source })?;
+        let ferr = |msg: &str| PointsError::Format { path: path.into(), msg: msg.into() };
+        if bytes.len() < 48 || &bytes[..8] != b"HRFLOW01" {
+            return Err(ferr("not a hairrecon flow file"));
+        }
+        let u = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8])) as usize;
+        let f = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
+        let dims = [u(8), u(16), u(24)];
+        let grid = Grid { origin: Vec3::new(f(32), f(36), f(40)), voxel: f(44), dims };
+        let n = grid.len();
+        if bytes.len() != 48 + n * 21 {
+            return Err(ferr("truncated"));
+        }
+        let mut out = FlowField {
+            grid,
+            field: Vec::with_capacity(n),
+            sd_outer: Vec::with_capacity(n),
+            sd_inner: Vec::with_capacity(n),
+            label: Vec::with_capacity(n),
+        };
+        for i in 0..n {
+            let o = 48 + i * 21;
+            out.field.push(Vec3::new(f(o), f(o + 4), f(o + 8)));
+            out.sd_outer.push(f(o + 12));
+            out.sd_inner.push(f(o + 16));
+            out.label.push(bytes[o + 20]);
+        }
+        Ok(out)
+    }
+}

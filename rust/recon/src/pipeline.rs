@@ -1,0 +1,391 @@
+//! The reconstruction pipeline up to the initial strands: capture → 2D orientation maps → oriented
+//! 3D points → directed points → roots, flow and grown strands.
+//!
+//! In: a validated [`Capture`] (images, optional masks, raw mesh, scalp mesh, optional head mesh
+//! and ground truth) and [`ReconstructOptions`]. Out: every stage's result in the output folder,
+//! [`ReconstructOutput`] with the paths of the strands, the time of each stage and, when the
+//! capture has ground truth, the metrics of each stage (also written to `metrics.json`).
+//!
+//! Output folder: `orient2d/<view>.exr` (+ `.png` pictures), `points3d.ply`,
+//! `points_directed.ply`, `roots.ply`, `flow.bin`, `guides.hair`, `strands.hair`, `metrics.json`.
+//! Each stage follows the paper named in its module ([`crate::orient2d`], [`crate::points3d`],
+//! [`crate::direction`], [`crate::roots`], [`crate::laplace`], [`crate::grow`]).
+//!
+//! Cancellation: `progress.check()` runs between views, chunks and solver iterations; a cancelled
+//! run returns [`ReconError::Cancelled`] and writes no strands file.
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::time::Instant;
+
+use hairrecon_core::capture::Capture;
+use hairrecon_core::formats::{read_mesh, read_strands, write_strands, FormatError};
+use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
+use hairrecon_core::{Bvh, StrandSet};
+use serde_json::json;
+use thiserror::Error;
+
+use crate::direction::{global_directions, gravity_directions, DirectionParams};
+use crate::grow::{grow_guides, interpolate_children, straight_strands, GrowParams};
+use crate::laplace::{solve_flow, LaplaceParams};
+use crate::metrics::{score_directions, score_points, PointIndex};
+use crate::orient2d::{
+    load_mask, orientation_errors, summarize_errors, GaborBank, GaborParams, GrayImage, Orient2dError, OrientationMap,
+};
+use crate::points3d::{estimate, LineMvsParams, MvsView, OrientedPoints, PointsError};
+use crate::progress::{Cancelled, Progress};
+use crate::roots::{sample_roots, Scalp, ScalpError};
+
+/// Why a reconstruction stopped.
+#[derive(Debug, Error)]
+pub enum ReconError {
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error(transparent)]
+    Orient2d(#[from] Orient2dError),
+    #[error(transparent)]
+    Points(#[from] PointsError),
+    #[error("cannot create the output folder {path}: {source}")]
+    OutDir { path: PathBuf, source: std::io::Error },
+    #[error("cannot write {path}: {source}")]
+    Write { path: PathBuf, source: std::io::Error },
+    #[error("the capture {dir} has no scalp mesh; add \"scalp_mesh\" to its capture.json")]
+    NoScalp { dir: PathBuf },
+    #[error("the scalp mesh {path} cannot be used: {source}")]
+    Scalp { path: PathBuf, source: ScalpError },
+    #[error("stage {0:?} is unknown; use one of orient2d, orient3d, direction, init")]
+    UnknownStage(String),
+}
+
+/// A stage after which the pipeline may stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+pub enum Stage {
+    Orient2d,
+    Orient3d,
+    Direction,
+    Init,
+}
+
+impl FromStr for Stage {
+    type Err = ReconError;
+    fn from_str(s: &str) -> Result<Self, ReconError> {
+        match s.to_ascii_lowercase().as_str() {
+            "orient2d" => Ok(Stage::Orient2d),
+            "orient3d" => Ok(Stage::Orient3d),
+            "direction" => Ok(Stage::Direction),
+            "init" => Ok(Stage::Init),
+            _ => Err(ReconError::UnknownStage(s.into())),
+        }
+    }
+}
+
+impl std::fmt::Display for Stage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Stage::Orient2d => "orient2d",
+            Stage::Orient3d => "orient3d",
+            Stage::Direction => "direction",
+            Stage::Init => "init",
+        })
+    }
+}
+
+/// Options of [`reconstruct`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReconstructOptions {
+    pub guides: usize,
+    pub children: usize,
+    pub stop_after: Option<Stage>,
+    /// Global direction optimization (false: the gravity heuristic).
+    pub global_opt: bool,
+    /// Strand initialization by the Laplace flow (false: straight strands along the normal).
+    pub strand_init: bool,
+    pub seed: u64,
+    pub gabor: GaborParams,
+    pub mvs: LineMvsParams,
+    pub direction: DirectionParams,
+    pub laplace: LaplaceParams,
+    pub grow: GrowParams,
+    /// Length of the straight strands of the `strand_init = false` ablation, metres.
+    pub straight_length: f32,
+    /// Write `orient2d/<view>.png` pictures besides the EXR maps.
+    pub write_pictures: bool,
+}
+
+impl Default for ReconstructOptions {
+    fn default() -> Self {
+        Self {
+            guides: 2000,
+            children: 50000,
+            stop_after: None,
+            global_opt: true,
+            strand_init: true,
+            seed: 0,
+            gabor: GaborParams::default(),
+            mvs: LineMvsParams::default(),
+            direction: DirectionParams::default(),
+            laplace: LaplaceParams::default(),
+            grow: GrowParams::default(),
+            straight_length: 0.1,
+            write_pictures: true,
+        }
+    }
+}
+
+/// What a run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReconstructOutput {
+    /// Child strands (`strands.hair`), when the run reached the init stage.
+    pub strands: Option<PathBuf>,
+    /// Guide strands (`guides.hair`).
+    pub guides: Option<PathBuf>,
+    /// (stage, seconds) in order.
+    pub stage_times: Vec<(String, f64)>,
+    /// Per-stage metrics (an empty object without ground truth).
+    pub metrics: serde_json::Value,
+}
+
+fn mkdir(p: &Path) -> Result<(), ReconError> {
+    std::fs::create_dir_all(p).map_err(|source| ReconError::OutDir { path: p.into(), source })
+}
+
+/// The 2D orientation stage over every view; returns the maps and, with ground truth, the error.
+pub fn orient2d_stage(
+    capture: &Capture,
+    out_dir: &Path,
+    opts: &ReconstructOptions,
+    progress: &dyn Progress,
+) -> Result<(Vec<OrientationMap>, Option<serde_json::Value>), ReconError> {
+    let dir = out_dir.join("orient2d");
+    mkdir(&dir)?;
+    let bank = GaborBank::new(opts.gabor);
+    let mut maps = Vec::with_capacity(capture.views.len());
+    let mut errs = Vec::new();
+    let mut have_gt = false;
+    for (i, v) in capture.views.iter().enumerate() {
+        progress.check()?;
+        progress.update("orient2d", i as f32 / capture.views.len() as f32, &v.name);
+        let img = GrayImage::load(&v.image)?;
+        let mask = match &v.mask {
+            Some(m) => Some(load_mask(m, img.width, img.height)?),
+            None => None,
+        };
+        let map = bank.compute(&img, mask.as_deref());
+        map.save_exr(&dir.join(format!("{}.exr", v.name)))?;
+        if opts.write_pictures {
+            map.save_png(&dir.join(format!("{}.png", v.name)))?;
+        }
+        if let Some(g) = &v.gt_orientation {
+            have_gt = true;
+            let gt = OrientationMap::load_exr(g)?;
+            if (gt.width, gt.height) == (map.width, map.height) {
+                errs.extend(orientation_errors(&map, &gt));
+            }
+        }
+        maps.push(map);
+    }
+    progress.update("orient2d", 1.0, "");
+    let metric = have_gt.then(|| serde_json::to_value(summarize_errors(errs)).unwrap_or_default());
+    Ok((maps, metric))
+}
+
+/// Reloads the maps of [`orient2d_stage`] from `out_dir/orient2d`.
+pub fn load_orient2d(capture: &Capture, out_dir: &Path) -> Result<Vec<OrientationMap>, ReconError> {
+    capture
+        .views
+        .iter()
+        .map(|v| {
+            OrientationMap::load_exr(&out_dir.join("orient2d").join(format!("{}.exr", v.name))).map_err(Into::into)
+        })
+        .collect()
+}
+
+/// Ground truth used by the metrics.
+struct Gt {
+    strands: StrandSet,
+    index: PointIndex,
+    /// Ground-truth points within the surface band of the raw mesh.
+    surface: Vec<usize>,
+}
+
+const MATCH_DIST: f32 = 0.002;
+const MATCH_ANGLE_DEG: f32 = 20.0;
+/// Ground-truth points up to this far inside the raw mesh count as the visible hair surface.
+const SURFACE_BAND: f32 = 0.003;
+
+fn load_gt(capture: &Capture, raw: &Bvh) -> Result<Option<Gt>, ReconError> {
+    let Some(p) = &capture.gt_strands else { return Ok(None) };
+    let strands = read_strands(p)?;
+    let index = PointIndex::from_strands(&strands, 0.001);
+    use rayon::prelude::*;
+    let surface = (0..index.len())
+        .into_par_iter()
+        .filter(|&i| raw.signed_distance(index.points[i], 0.02).is_some_and(|d| d > -SURFACE_BAND))
+        .collect();
+    Ok(Some(Gt { strands, index, surface }))
+}
+
+fn strand_metric(pred: &StrandSet, gt: &StrandSet) -> serde_json::Value {
+    let opts = MetricOptions {
+        step: 0.001,
+        thresholds: vec![
+            Threshold { dist: 0.001, angle_deg: 10.0 },
+            Threshold { dist: 0.002, angle_deg: 20.0 },
+            Threshold { dist: 0.003, angle_deg: 30.0 },
+        ],
+    };
+    match evaluate(pred, gt, &opts) {
+        Ok(r) => serde_json::to_value(r).unwrap_or_default(),
+        Err(e) => json!({ "error": e.to_string() }),
+    }
+}
+
+/// Runs the pipeline (see the module doc).
+pub fn reconstruct(
+    capture: &Capture,
+    out_dir: &Path,
+    opts: &ReconstructOptions,
+    progress: &dyn Progress,
+) -> Result<ReconstructOutput, ReconError> {
+    mkdir(out_dir)?;
+    let mut times: Vec<(String, f64)> = Vec::new();
+    let mut metrics = serde_json::Map::new();
+    let stop = opts.stop_after.unwrap_or(Stage::Init);
+    let write_metrics = |m: &serde_json::Map<String, serde_json::Value>| -> Result<(), ReconError> {
+        if m.is_empty() {
+            return Ok(());
+        }
+        let p = out_dir.join("metrics.json");
+        let text = serde_json::to_string_pretty(m).unwrap_or_default();
+        std::fs::write(&p, text).map_err(|source| ReconError::Write { path: p, source })
+    };
+
+    // Stage 1: 2D orientation.
+    let t = Instant::now();
+    let (maps, m) = orient2d_stage(capture, out_dir, opts, progress)?;
+    times.push(("orient2d".into(), t.elapsed().as_secs_f64()));
+    if let Some(m) = m {
+        metrics.insert("orient2d".into(), m);
+    }
+    let done = |times: Vec<(String, f64)>, metrics: serde_json::Map<String, serde_json::Value>| ReconstructOutput {
+        strands: None,
+        guides: None,
+        stage_times: times,
+        metrics: serde_json::Value::Object(metrics),
+    };
+    if stop == Stage::Orient2d {
+        write_metrics(&metrics)?;
+        return Ok(done(times, metrics));
+    }
+
+    // Stage 2: oriented 3D points.
+    let t = Instant::now();
+    progress.update("orient3d", 0.0, "loading the raw mesh");
+    let raw = Bvh::new(read_mesh(&capture.raw_mesh)?);
+    progress.check()?;
+    let views: Vec<MvsView> =
+        capture.views.iter().zip(&maps).map(|(v, m)| MvsView { camera: &v.camera, map: m }).collect();
+    let points = estimate(&views, &raw, &opts.mvs, progress)?;
+    points.save_ply(&out_dir.join("points3d.ply"))?;
+    times.push(("orient3d".into(), t.elapsed().as_secs_f64()));
+    let gt = load_gt(capture, &raw)?;
+    if let Some(g) = &gt {
+        let s = score_points(
+            &points.positions,
+            &points.directions,
+            &g.index,
+            &g.surface,
+            MATCH_DIST,
+            MATCH_ANGLE_DEG.to_radians(),
+        );
+        metrics.insert("orient3d".into(), serde_json::to_value(s).unwrap_or_default());
+    }
+    if stop == Stage::Orient3d {
+        write_metrics(&metrics)?;
+        return Ok(done(times, metrics));
+    }
+
+    // Stage 3: global direction.
+    let t = Instant::now();
+    progress.update("direction", 0.0, "");
+    let scalp_path = capture.scalp_mesh.as_ref().ok_or_else(|| ReconError::NoScalp { dir: capture.dir.clone() })?;
+    let scalp =
+        Scalp::new(read_mesh(scalp_path)?).map_err(|source| ReconError::Scalp { path: scalp_path.clone(), source })?;
+    progress.check()?;
+    let directed = if opts.global_opt {
+        let (d, stats) = global_directions(&points, &scalp, &opts.direction);
+        metrics.insert("direction_stats".into(), serde_json::to_value(stats).unwrap_or_default());
+        d
+    } else {
+        gravity_directions(&points)
+    };
+    directed.save_ply(&out_dir.join("points_directed.ply"))?;
+    times.push(("direction".into(), t.elapsed().as_secs_f64()));
+    if let Some(g) = &gt {
+        let s = score_directions(
+            &directed.positions,
+            &directed.directions,
+            &g.index,
+            MATCH_DIST,
+            MATCH_ANGLE_DEG.to_radians(),
+        );
+        metrics.insert("direction".into(), serde_json::to_value(s).unwrap_or_default());
+    }
+    if stop == Stage::Direction {
+        write_metrics(&metrics)?;
+        return Ok(done(times, metrics));
+    }
+
+    // Stage 4 + 5: roots, flow, growing.
+    let t = Instant::now();
+    progress.check()?;
+    progress.update("init", 0.0, "roots");
+    let scalp_err = |source| ReconError::Scalp { path: scalp_path.clone(), source };
+    let guide_roots = sample_roots(&scalp, opts.guides.max(1), opts.seed).map_err(scalp_err)?;
+    let child_roots = sample_roots(&scalp, opts.children.max(1), opts.seed.wrapping_add(1)).map_err(scalp_err)?;
+    guide_roots.to_points().save_ply(&out_dir.join("roots.ply"))?;
+    let (guides, children) = if opts.strand_init {
+        let inner = match &capture.head_mesh {
+            Some(h) => Bvh::new(read_mesh(h)?),
+            None => scalp.bvh().clone(),
+        };
+        let (flow, stats) = solve_flow(&raw, &inner, &scalp, &directed, &opts.laplace, progress)?;
+        metrics.insert("laplace_stats".into(), serde_json::to_value(stats).unwrap_or_default());
+        flow.save(&out_dir.join("flow.bin"))?;
+        let guides = grow_guides(&flow, &guide_roots, &opts.grow, progress)?;
+        let children = interpolate_children(&guides, &child_roots, Some(&flow), &opts.grow, progress)?;
+        (guides, children)
+    } else {
+        let seg = (opts.straight_length / opts.grow.step).ceil() as usize;
+        (
+            straight_strands(&guide_roots, opts.straight_length, seg),
+            straight_strands(&child_roots, opts.straight_length, seg),
+        )
+    };
+    progress.check()?;
+    let guides_path = out_dir.join("guides.hair");
+    let strands_path = out_dir.join("strands.hair");
+    write_strands(&guides_path, &guides)?;
+    write_strands(&strands_path, &children)?;
+    times.push(("init".into(), t.elapsed().as_secs_f64()));
+    if let Some(g) = &gt {
+        progress.update("metrics", 0.0, "scoring strands");
+        metrics.insert("init_guides".into(), strand_metric(&guides, &g.strands));
+        metrics.insert("init_strands".into(), strand_metric(&children, &g.strands));
+    }
+    write_metrics(&metrics)?;
+    progress.update("init", 1.0, "");
+    Ok(ReconstructOutput {
+        strands: Some(strands_path),
+        guides: Some(guides_path),
+        stage_times: times,
+        metrics: serde_json::Value::Object(metrics),
+    })
+}
+
+/// Reloads oriented points saved by a stage (`points3d.ply` or `points_directed.ply`).
+pub fn load_points(out_dir: &Path, name: &str) -> Result<OrientedPoints, ReconError> {
+    Ok(OrientedPoints::load_ply(&out_dir.join(name))?)
+}

@@ -1,0 +1,384 @@
+//! Stage 2: oriented 3D points near the hair surface (a simplified line-based MVS).
+//!
+//! In: the views' cameras and 2D orientation maps ([`crate::orient2d`]) and the raw mesh (a BVH).
+//! Out: [`OrientedPoints`]: positions, undirected unit directions and a confidence, saved as
+//! `points3d.ply` (binary PLY, the direction as the normal) and reloaded from there.
+//!
+//! Follows LPMVS (Nam, Wu, Kim, Sheffer, Cohen, "Strand-Accurate Multi-View Hair Capture", CVPR
+//! 2019) in its cost, with the raw mesh as the depth prior (`docs/method.md` §2). What is built:
+//! - every `stride`-th hair pixel of every view is a reference pixel; its ray is cast on the raw
+//!   mesh for the prior depth t₀; pixels that miss the mesh are skipped;
+//! - the hypotheses are 3D lines through the ray at depths t₀ + `depth_offsets` whose projection
+//!   into the reference view follows the pixel's 2D orientation exactly (LPMVS's constraint: the
+//!   direction lies in the plane spanned by the ray and the image direction), with the in-plane
+//!   angle φ sampled over `angle_steps` values then refined;
+//! - the cost of a hypothesis is the confidence-weighted mean of sin² of the angle between the
+//!   line's projection and the 2D orientation in the `neighbours` nearest views where the prior
+//!   point is visible (a ray cast on the raw mesh); a view where the point falls outside the hair
+//!   costs 1 at a fixed weight;
+//! - a point is kept when its cost is below `max_cost` and at least `min_agree` neighbouring views
+//!   agree within `agree_angle`.
+//!
+//! Not built (yet): PatchMatch's random search and propagation between neighbouring pixels, and
+//! LPMVS's final cross-view point filtering; the exhaustive search over the small hypothesis set
+//! replaces the first.
+
+use std::io::{BufRead, Read, Write};
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+use hairrecon_core::{Bvh, Camera};
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::orient2d::OrientationMap;
+use crate::progress::{Cancelled, Progress};
+
+/// Why points could not be saved or loaded.
+#[derive(Debug, Error)]
+pub enum PointsError {
+    #[error("cannot write {path}: {source}")]
+    Write { path: std::path::PathBuf, source: std::io::Error },
+    #[error("cannot read {path}: {source}")]
+    Read { path: std::path::PathBuf, source: std::io::Error },
+    #[error("{path} is not a points PLY written by hairrecon: {msg}")]
+    Format { path: std::path::PathBuf, msg: String },
+}
+
+/// Oriented (undirected or directed) 3D points.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OrientedPoints {
+    pub positions: Vec<Vec3>,
+    /// Unit directions.
+    pub directions: Vec<Vec3>,
+    /// In [0, 1].
+    pub confidence: Vec<f32>,
+}
+
+impl OrientedPoints {
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Writes a binary little-endian PLY: x y z nx ny nz (direction) confidence.
+    pub fn save_ply(&self, path: &Path) -> Result<(), PointsError> {
+        let werr = |source| PointsError::Write { path: path.into(), source };
+        let f = std::fs::File::create(path).map_err(werr)?;
+        let mut w = std::io::BufWriter::new(f);
+        let header = format!(
+            "ply\nformat binary_little_endian 1.0\ncomment hairrecon oriented points\nelement vertex {}\n\
+             property float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+             property float nz\nproperty float confidence\nend_header\n",
+            self.len()
+        );
+        w.write_all(header.as_bytes()).map_err(werr)?;
+        let mut buf = Vec::with_capacity(self.len() * 28);
+        for i in 0..self.len() {
+            let (p, d) = (self.positions[i], self.directions[i]);
+            for v in [p.x, p.y, p.z, d.x, d.y, d.z, self.confidence[i]] {
+                buf.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        w.write_all(&buf).map_err(werr)?;
+        w.flush().map_err(werr)
+    }
+
+    /// Reads a PLY written by [`OrientedPoints::save_ply`].
+    pub fn load_ply(path: &Path) -> Result<Self, PointsError> {
+        let f = std::fs::File::open(path).map_err(|source| PointsError::Read { path: path.into(), source })?;
+        let mut r = std::io::BufReader::new(f);
+        let ferr = |msg: &str| PointsError::Format { path: path.into(), msg: msg.into() };
+        let mut n = None;
+        let mut props = 0;
+        loop {
+            let mut line = String::new();
+            if r.read_line(&mut line).map_err(|source| PointsError::Read { path: path.into(), source })? == 0 {
+                return Err(ferr("no end_header"));
+            }
+            let line = line.trim();
+            if let Some(rest) = line.strip_prefix("element vertex ") {
+                n = rest.trim().parse::<usize>().ok();
+            } else if line.starts_with("property float") {
+                props += 1;
+            } else if line.starts_with("format") && !line.contains("binary_little_endian") {
+                return Err(ferr("not binary little endian"));
+            } else if line == "end_header" {
+                break;
+            }
+        }
+        let n = n.ok_or_else(|| ferr("no vertex count"))?;
+        if props != 7 {
+            return Err(ferr("expected 7 float properties (x y z nx ny nz confidence)"));
+        }
+        let mut bytes = vec![0u8; n * 28];
+        r.read_exact(&mut bytes).map_err(|source| PointsError::Read { path: path.into(), source })?;
+        let mut out = OrientedPoints::default();
+        for c in bytes.chunks_exact(28) {
+            let v: Vec<f32> = c.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+            out.positions.push(Vec3::new(v[0], v[1], v[2]));
+            out.directions.push(Vec3::new(v[3], v[4], v[5]));
+            out.confidence.push(v[6]);
+        }
+        Ok(out)
+    }
+}
+
+/// Parameters of the line MVS.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LineMvsParams {
+    /// Use every `stride`-th pixel in x and y as a reference pixel.
+    pub stride: usize,
+    /// Number of neighbouring views that judge a hypothesis.
+    pub neighbours: usize,
+    /// Most angle (degrees) between the reference and a neighbour's viewing direction at the head.
+    pub max_view_angle_deg: f32,
+    /// Depth offsets (metres, along the ray) around the raw mesh's depth.
+    pub depth_offsets: Vec<f32>,
+    /// Samples of the in-plane angle over [0, π).
+    pub angle_steps: usize,
+    /// Reference pixels with a 2D confidence below this are skipped.
+    pub min_confidence: f32,
+    /// Largest accepted cost (mean sin²).
+    pub max_cost: f32,
+    /// Views that must agree within `agree_angle_deg`.
+    pub min_agree: usize,
+    pub agree_angle_deg: f32,
+    /// A neighbour sees the point when the raw mesh is hit no nearer than this before it (metres).
+    pub visibility_margin: f32,
+}
+
+impl Default for LineMvsParams {
+    fn default() -> Self {
+        Self {
+            stride: 2,
+            neighbours: 8,
+            max_view_angle_deg: 70.0,
+            depth_offsets: vec![-0.004, -0.003, -0.002, -0.001, 0.0, 0.001],
+            angle_steps: 36,
+            min_confidence: 0.05,
+            max_cost: 0.06,
+            min_agree: 2,
+            agree_angle_deg: 12.0,
+            visibility_margin: 0.004,
+        }
+    }
+}
+
+/// One view as the line MVS sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct MvsView<'a> {
+    pub camera: &'a Camera,
+    pub map: &'a OrientationMap,
+}
+
+/// Neighbour views of each view: nearest viewing directions towards `centre`.
+pub fn neighbour_views(cameras: &[&Camera], centre: Vec3, k: usize, max_angle_deg: f32) -> Vec<Vec<usize>> {
+    let dirs: Vec<Vec3> = cameras.iter().map(|c| (c.center() - centre).normalize_or_zero()).collect();
+    let cmin = max_angle_deg.to_radians().cos();
+    (0..cameras.len())
+        .map(|i| {
+            let mut cand: Vec<(usize, f32)> = (0..cameras.len())
+                .filter(|&j| j != i)
+                .map(|j| (j, dirs[i].dot(dirs[j])))
+                .filter(|&(_, c)| c >= cmin)
+                .collect();
+            cand.sort_by(|a, b| b.1.total_cmp(&a.1));
+            cand.truncate(k);
+            cand.into_iter().map(|c| c.0).collect()
+        })
+        .collect()
+}
+
+/// sin² of the angle between a projected 2D direction `a` and the image angle `theta`.
+#[inline]
+fn sin2(a: Vec2, theta: f32) -> f32 {
+    let (s, c) = theta.sin_cos();
+    let l2 = a.length_squared();
+    if l2 <= 1e-20 {
+        return 1.0;
+    }
+    let cr = a.x * s - a.y * c;
+    cr * cr / l2
+}
+
+/// Weight of a view where the point falls outside the hair.
+const OFF_HAIR_WEIGHT: f32 = 0.3;
+
+/// Estimates oriented points from every view. Checks for cancellation once per view.
+pub fn estimate(
+    views: &[MvsView],
+    raw: &Bvh,
+    params: &LineMvsParams,
+    progress: &dyn Progress,
+) -> Result<OrientedPoints, Cancelled> {
+    let (lo, hi) = raw.mesh().bbox();
+    let centre = 0.5 * (lo + hi);
+    let cams: Vec<&Camera> = views.iter().map(|v| v.camera).collect();
+    let nbrs = neighbour_views(&cams, centre, params.neighbours, params.max_view_angle_deg);
+    let mut out = OrientedPoints::default();
+    let steps = params.angle_steps.max(4);
+    let agree_s2 = params.agree_angle_deg.to_radians().sin().powi(2);
+    for (vi, view) in views.iter().enumerate() {
+        progress.check()?;
+        progress.update("orient3d", vi as f32 / views.len() as f32, &format!("view {}/{}", vi + 1, views.len()));
+        let cam = view.camera;
+        let map = view.map;
+        let (w, h) = (map.width as usize, map.height as usize);
+        let s = params.stride.max(1);
+        let pixels: Vec<(usize, usize)> = (0..h)
+            .step_by(s)
+            .flat_map(|y| (0..w).step_by(s).map(move |x| (x, y)))
+            .filter(|&(x, y)| map.confidence[y * w + x] >= params.min_confidence)
+            .collect();
+        let nb = &nbrs[vi];
+        let found: Vec<(Vec3, Vec3, f32)> = pixels
+            .par_iter()
+            .filter_map(|&(x, y)| {
+                let px = Vec2::new(x as f32, y as f32);
+                let o = cam.center();
+                let ray = cam.ray_direction(px);
+                let hit = raw.ray_cast(o, ray, 0.0, f32::INFINITY)?;
+                let x0 = o + ray * hit.t;
+                // Visible neighbours at the prior point.
+                let mut vis = [0usize; 16];
+                let mut nvis = 0;
+                for &j in nb.iter() {
+                    if nvis == vis.len() {
+                        break;
+                    }
+                    let cj = views[j].camera;
+                    let Some(pj) = cj.project(x0) else { continue };
+                    if !cj.contains(pj.pixel) {
+                        continue;
+                    }
+                    let oj = cj.center();
+                    let dj = x0 - oj;
+                    let dist = dj.length();
+                    let dj = dj / dist;
+                    let occluded = raw.ray_cast(oj, dj, 0.0, dist - params.visibility_margin).is_some();
+                    if !occluded {
+                        vis[nvis] = j;
+                        nvis += 1;
+                    }
+                }
+                if nvis < params.min_agree {
+                    return None;
+                }
+                let vis = &vis[..nvis];
+                // The plane of directions whose projection follows θ in the reference view.
+                let theta = map.theta[y * w + x];
+                let [ju, jv] = cam.project_jacobian(x0)?;
+                let nimg = Vec2::new(-theta.sin(), theta.cos());
+                let g = ju * nimg.x + jv * nimg.y;
+                let e1 = g.cross(ray).normalize_or_zero();
+                if e1 == Vec3::ZERO {
+                    return None;
+                }
+                let cost = |t: f32, phi: f32| -> (f32, Vec3, Vec3) {
+                    let p = o + ray * t;
+                    let d = e1 * phi.cos() + ray * phi.sin();
+                    let (mut sum, mut wsum) = (0.0f32, 0.0f32);
+                    for &j in vis {
+                        let cj = views[j].camera;
+                        let pc = cj.to_camera(p);
+                        if pc.z <= 1e-6 {
+                            continue;
+                        }
+                        let pix = cj.camera_to_pixel(pc);
+                        let (th, c) = views[j].map.sample(pix.x, pix.y);
+                        if c <= 0.0 {
+                            sum += OFF_HAIR_WEIGHT;
+                            wsum += OFF_HAIR_WEIGHT;
+                            continue;
+                        }
+                        let [a, b] = cj.camera_jacobian(pc);
+                        let pd = Vec2::new(a.dot(d), b.dot(d));
+                        sum += c * sin2(pd, th);
+                        wsum += c;
+                    }
+                    (if wsum > 0.0 { sum / wsum } else { 1.0 }, p, d)
+                };
+                let mut best = (f32::INFINITY, 0.0f32, 0.0f32);
+                for &dt in &params.depth_offsets {
+                    let t = hit.t + dt;
+                    for k in 0..steps {
+                        let phi = -std::f32::consts::FRAC_PI_2 + (k as f32 + 0.5) * std::f32::consts::PI / steps as f32;
+                        let (c, _, _) = cost(t, phi);
+                        if c < best.0 {
+                            best = (c, t, phi);
+                        }
+                    }
+                }
+                // Local refinement of φ and depth.
+                let mut dphi = 0.5 * std::f32::consts::PI / steps as f32;
+                let mut ddt = 0.0005f32;
+                for _ in 0..3 {
+                    for (a, b) in [(dphi, 0.0), (-dphi, 0.0), (0.0, ddt), (0.0, -ddt)] {
+                        let (c, _, _) = cost(best.1 + b, best.2 + a);
+                        if c < best.0 {
+                            best = (c, best.1 + b, best.2 + a);
+                        }
+                    }
+                    dphi *= 0.5;
+                    ddt *= 0.5;
+                }
+                if best.0 > params.max_cost {
+                    return None;
+                }
+                let (_, p, d) = cost(best.1, best.2);
+                // Agreement count.
+                let mut agree = 0;
+                for &j in vis {
+                    let cj = views[j].camera;
+                    let pc = cj.to_camera(p);
+                    if pc.z <= 1e-6 {
+                        continue;
+                    }
+                    let pix = cj.camera_to_pixel(pc);
+                    let (th, c) = views[j].map.sample(pix.x, pix.y);
+                    if c <= 0.0 {
+                        continue;
+                    }
+                    let [a, b] = cj.camera_jacobian(pc);
+                    if sin2(Vec2::new(a.dot(d), b.dot(d)), th) <= agree_s2 {
+                        agree += 1;
+                    }
+                }
+                if agree < params.min_agree {
+                    return None;
+                }
+                let conf = (1.0 - best.0 / params.max_cost.max(1e-6)).clamp(0.0, 1.0) * map.confidence[y * w + x];
+                Some((p, d.normalize(), conf))
+            })
+            .collect();
+        for (p, d, c) in found {
+            out.positions.push(p);
+            out.directions.push(d);
+            out.confidence.push(c);
+        }
+    }
+    progress.update("orient3d", 1.0, &format!("{} points", out.len()));
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ply_round_trip() {
+        let pts = OrientedPoints {
+            positions: vec![Vec3::new(0.1, 0.2, 0.3), Vec3::new(-1.0, 0.0, 2.0)],
+            directions: vec![Vec3::X, Vec3::new(0.0, 0.6, 0.8)],
+            confidence: vec![0.5, 1.0],
+        };
+        let p = std::env::temp_dir().join(format!("hairrecon-points-{}.ply", std::process::id()));
+        pts.save_ply(&p).unwrap();
+        assert_eq!(OrientedPoints::load_ply(&p).unwrap(), pts);
+        let _ = std::fs::remove_file(&p);
+    }
+}
