@@ -10,7 +10,8 @@ the .blend (Hair panel) or the overrides below, and writes into DIR:
     scene.blend         the scene with the hair Curves objects added
     strands.hair        the strands (children), world space, root to tip
     guides.hair         the guide strands
-    summary.json        counts, root distances, stage times, metrics
+    summary.json        objects and strand counts
+    render.png          with --render: a Cycles picture of the result from a scene camera
     capture/, result/   the capture folder written from the scene and the library's own output
 
 Progress goes to stdout; on failure it prints one ``error: ...`` line to stderr and exits 1.
@@ -46,6 +47,10 @@ def parse_args(argv):
     ap.add_argument("--iterations", type=int)
     ap.add_argument("--seed", type=int)
     ap.add_argument("--stop-after", help="stop the pipeline after this stage")
+    ap.add_argument("--render", type=Path, help="also render the result with Cycles (CPU) to this PNG")
+    ap.add_argument("--render-camera", help="camera for --render (default: the scene camera)")
+    ap.add_argument("--render-height", type=int, default=512, help="picture height in pixels (default 512)")
+    ap.add_argument("--render-samples", type=int, default=32)
     return ap.parse_args(argv)
 
 
@@ -132,6 +137,46 @@ def write_strands(hr, path: Path, obj):
     hr.write_strands(str(path), np.ascontiguousarray(world), np.diff(off).astype(np.uint32))
 
 
+def render_picture(bpy, a, hair):
+    """A Cycles picture of the head and the new hair; the raw mesh is hidden. Runs after the
+    result was saved, so the saved scene keeps its own render settings."""
+    scene = bpy.context.scene
+    s = scene.hairrecon
+    cam = bpy.data.objects.get(a.render_camera) if a.render_camera else scene.camera
+    if cam is None or cam.type != "CAMERA":
+        raise Failure(f"--render-camera: no camera named {a.render_camera!r}" if a.render_camera else
+                      "--render: the scene has no camera; pass --render-camera")
+    scene.camera = cam
+    # show the hair, the head and the scalp: hide the raw mesh, the guides and everything else
+    keep = {o.name for o in hair if not o.name.endswith("Guides")}
+    keep |= {o.name for o in (s.head_object, s.scalp_object) if o is not None}
+    keep |= {o.data.surface.name for o in hair if o.data.surface is not None}
+    for o in scene.objects:
+        if o.type in {"MESH", "CURVES", "CURVE", "SURFACE", "META", "FONT", "VOLUME", "POINTCLOUD"}:
+            o.hide_render = o.name not in keep
+    r = scene.render
+    r.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = a.render_samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    r.resolution_percentage = max(1, round(100 * a.render_height / r.resolution_y))
+    r.film_transparent = False
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("World")
+    scene.world.use_nodes = True
+    bg = scene.world.node_tree.nodes.get("Background")
+    if bg is not None:
+        bg.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+        bg.inputs["Strength"].default_value = 1.0
+    r.image_settings.file_format = "PNG"
+    r.filepath = str(a.render.resolve())
+    a.render.parent.mkdir(parents=True, exist_ok=True)
+    print(f"hairrecon: rendering {r.filepath} from {cam.name!r}", flush=True)
+    bpy.ops.render.render(write_still=True)
+    return r.filepath
+
+
 def run(a) -> dict:
     import bpy
 
@@ -167,6 +212,8 @@ def run(a) -> dict:
         summary[key] = {"object": o.name, "count": len(o.data.curves), "points": len(o.data.points), "file": str(path)}
     bpy.ops.wm.save_as_mainfile(filepath=str(out / "scene.blend"), copy=True)
     summary["saved"] = str(out / "scene.blend")
+    if a.render is not None:
+        summary["render"] = render_picture(bpy, a, hair)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 

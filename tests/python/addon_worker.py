@@ -346,6 +346,15 @@ def attach_node_check(obj, offset=0.01) -> dict:
     return out
 
 
+def clear_scene():
+    """Removes the startup scene's objects (its 2 m cube would enclose the test cameras)."""
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o)
+    for coll in (bpy.data.meshes, bpy.data.cameras, bpy.data.lights, bpy.data.materials):
+        for db in list(coll):
+            coll.remove(db)
+
+
 def new_result_objects(before: dict) -> list:
     return [bpy.data.objects[n] for n in sorted(set(snapshot()["objects"]) - set(before["objects"]))]
 
@@ -358,6 +367,7 @@ def task_pipeline(p):
     out = {"install": install(p.get("zip"))}
     import hairrecon
 
+    clear_scene()
     res, err = run_op(bpy.ops.hairrecon.import_capture, directory=p["capture"])
     out["import"] = {"result": res, "error": err, "snapshot": snapshot()}
     scene = bpy.context.scene
@@ -442,6 +452,7 @@ def task_pipeline(p):
 
 def task_cancel(p):
     out = {"install": install(p.get("zip"))}
+    clear_scene()
     run_op(bpy.ops.hairrecon.import_capture, directory=p["capture"])
     configure(p)
     import hairrecon
