@@ -22,5 +22,6 @@ pub mod strands;
 pub use camera::{Camera, CameraError};
 pub use mesh::{Bvh, MeshError, TriMesh};
 pub use strands::{StrandError, StrandSet};
+
 pub use formats::{read_mesh, read_strands, write_mesh, write_strands, FormatError, FormatErrorKind};
 pub use image_io::{GrayImage32, RgbImage32};
