@@ -64,9 +64,10 @@ def workspace_version() -> str:
 
 
 def build_wheel(out: Path) -> Path:
-    cmd = [str(venv_bin("maturin")), "build", "--release", "-m", str(ROOT / "rust/python/Cargo.toml"), "-o", str(out)]
+    cmd = [str(venv_bin("maturin")), "build", "--release", "--strip", "-m", str(ROOT / "rust/python/Cargo.toml"), "-o", str(out)]
     print("+", " ".join(cmd), flush=True)
-    subprocess.run(cmd, check=True, cwd=ROOT)
+    if subprocess.run(cmd, cwd=ROOT).returncode != 0:
+        raise SystemExit("error: maturin could not build the hairrecon wheel (messages above)")
     wheels = sorted(out.glob("hairrecon-*.whl"))
     if not wheels:
         raise SystemExit(f"error: maturin wrote no hairrecon wheel into {out}")
@@ -127,7 +128,8 @@ def main(argv=None) -> int:
         zip_path = (args.out_dir / f"hairrecon-{version}-{platform.replace('-', '_')}.zip").resolve()
         cmd = [sys.executable, str(find_blender_ext()), "build", "--source-dir", str(src), "--output-filepath", str(zip_path)]
         print("+", " ".join(cmd), flush=True)
-        subprocess.run(cmd, check=True)
+        if subprocess.run(cmd).returncode != 0:
+            raise SystemExit("error: Blender's extension build failed (messages above)")
     if not zip_path.is_file():
         raise SystemExit(f"error: the extension build wrote no {zip_path}")
     print(zip_path)

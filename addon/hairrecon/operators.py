@@ -95,7 +95,7 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
             session.start()
         except Exception as e:  # noqa: BLE001
             session.cleanup()
-            self.report({"ERROR"}, f"cannot start the reconstruction: {e}")
+            self.report({"ERROR"}, str(e) if isinstance(e, UserError) else f"cannot start the reconstruction: {e}")
             return {"CANCELLED"}
         session.wait(echo=bpy.app.background)
         return self._finish(context, session)
@@ -110,7 +110,7 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
             session.start()
         except Exception as e:  # noqa: BLE001
             session.cleanup()
-            self.report({"ERROR"}, f"cannot start the reconstruction: {e}")
+            self.report({"ERROR"}, str(e) if isinstance(e, UserError) else f"cannot start the reconstruction: {e}")
             return {"CANCELLED"}
         _ACTIVE["session"] = session
         self._timer = context.window_manager.event_timer_add(0.2, window=context.window)

@@ -84,7 +84,7 @@ class HairreconSettings(bpy.types.PropertyGroup):
     seed: IntProperty(name="Seed", default=0, min=0)
     stop_after: StringProperty(
         name="Stop After",
-        description="Advanced: stop the pipeline after this stage (empty = run it all)",
+        description="Advanced: stop the pipeline after this stage: orient2d, orient3d, direction, init (empty = run it all)",
     )
 
 

@@ -41,6 +41,8 @@ def library():
 
 
 def _accepts(fn, name: str) -> bool:
+    if fn is None:
+        return False
     sig = getattr(fn, "__text_signature__", None) or ""
     if name in sig:
         return True
@@ -135,7 +137,7 @@ class Session:
         options = {"guides": int(s.guides), "children": int(s.children), "seed": int(s.seed)}
         if s.stop_after.strip():
             options["stop_after"] = s.stop_after.strip()
-        if _accepts(hr.Reconstruction, "iterations"):
+        if _accepts(getattr(hr, "Reconstruction", None), "iterations"):
             options["iterations"] = int(s.iterations)
         session = cls(capture_dir, out_dir, keep, options, surface, group)
         session.root = root
@@ -153,6 +155,10 @@ class Session:
 
     def start(self):
         hr = library()
+        if not hasattr(hr, "Reconstruction"):
+            raise UserError(
+                f"the hairrecon library {getattr(hr, '__version__', '?')} has no Reconstruction; install a newer extension"
+            )
         self.job = hr.Reconstruction(str(self.capture_dir), str(self.out_dir), **self.options)
         self.started = time.monotonic()
         self.job.start()

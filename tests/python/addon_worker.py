@@ -360,7 +360,18 @@ def new_result_objects(before: dict) -> list:
 
 
 def task_install(p):
-    return install(p["zip"])
+    out = install(p["zip"])
+    out["panels"] = [n for n in ("HAIRRECON_PT_reconstruct", "HAIRRECON_PT_advanced") if hasattr(bpy.types, n)]
+    out["panel_category"] = getattr(getattr(bpy.types, "HAIRRECON_PT_reconstruct", None), "bl_category", None)
+    out["operators"] = [n for n in ("reconstruct", "import_capture", "export_hair") if hasattr(bpy.ops.hairrecon, n)
+                        and bpy.ops.hairrecon.__getattribute__(n).idname() == f"HAIRRECON_OT_{n}"]
+    # quality presets fill in the counts; editing a count switches to Custom
+    s = bpy.context.scene.hairrecon
+    s.quality = "PREVIEW"
+    preview = [s.guides, s.children, s.iterations, s.quality]
+    s.guides = 123
+    out["presets"] = {"preview": preview, "after_edit": [s.guides, s.quality]}
+    return out
 
 
 def task_pipeline(p):

@@ -209,6 +209,9 @@ def test_extension_installs_and_registers(extension_zip, tmp_path):
     out = run_worker("install", user, zip=str(extension_zip))
     assert "bl_ext.user_default.hairrecon" in out["enabled"], out
     assert out["has_operator"]
+    assert out["operators"] == ["reconstruct", "import_capture", "export_hair"]
+    assert out["panels"] == ["HAIRRECON_PT_reconstruct", "HAIRRECON_PT_advanced"] and out["panel_category"] == "Hair"
+    assert out["presets"] == {"preview": [300, 3000, 100, "PREVIEW"], "after_edit": [123, "CUSTOM"]}
     # the Rust module comes from the wheel bundled in the extension, installed in the user folder
     assert str(user) in out["module_file"], out["module_file"]
 
