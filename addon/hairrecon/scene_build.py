@@ -15,7 +15,7 @@ from mathutils import Matrix
 from mathutils.bvhtree import BVHTree
 
 from .core.camera import PinholeCamera, blender_from_opencv
-from .core.surface import interpolate_uv, scalp_uv
+from .core.surface import interpolate_uv, loop_uvs
 
 HAIR_UV_MAP = "hairrecon_uv"
 
@@ -85,14 +85,24 @@ def ensure_uv_map(obj: bpy.types.Object, group_name: Optional[str] = None) -> st
         from .scene_read import vertex_group_mask
 
         keep = vertex_group_mask(obj, group_name)
-    uv_v = np.zeros((len(co), 2), np.float32)
-    uv_v[keep] = scalp_uv(co[keep])
     loop_v = np.empty(len(me.loops), np.int32)
     me.loops.foreach_get("vertex_index", loop_v)
+    starts = np.empty(len(me.polygons), np.int32)
+    me.polygons.foreach_get("loop_start", starts)
+    totals = np.empty(len(me.polygons), np.int32)
+    me.polygons.foreach_get("loop_total", totals)
+    loop_face = np.empty(len(me.loops), np.int64)
+    loop_face[np.repeat(starts, totals) + _ranks(totals)] = np.repeat(np.arange(len(starts)), totals)
     layer = me.uv_layers.new(name=HAIR_UV_MAP)
-    layer.uv.foreach_set("vector", uv_v[loop_v].ravel())
+    layer.uv.foreach_set("vector", loop_uvs(co, co[keep], loop_v, loop_face).ravel())
     me.uv_layers.active = layer
     return layer.name
+
+
+def _ranks(totals: np.ndarray) -> np.ndarray:
+    """0, 1, ..., n-1 within each polygon: loop index = loop_start + rank."""
+    starts = np.concatenate([[0], np.cumsum(totals)[:-1]])
+    return np.arange(int(totals.sum())) - np.repeat(starts, totals)
 
 
 def attach(points_local: np.ndarray, counts: np.ndarray, surface: bpy.types.Object):

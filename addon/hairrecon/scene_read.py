@@ -200,9 +200,7 @@ def scalp_data(obj, depsgraph, group_name: Optional[str] = None) -> tuple[MeshDa
         keep = np.ones(len(v), bool)
     has_uv = loop_uv is not None
     if not has_uv:
-        uv_v = np.zeros((len(v), 2), np.float32)
-        if keep.any():
-            uv_v[keep] = scalp_uv(v[keep])
+        uv_v = scalp_uv(v, v[keep])
         loop_uv = uv_v[loop_vertex]
     vv, tt, uu = split_uv_seams(v, tri_loops, loop_vertex, loop_uv)
     if group_name:

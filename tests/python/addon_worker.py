@@ -249,6 +249,11 @@ def curves_report(obj) -> dict:
     luv = np.empty(len(me.loops) * 2, np.float32)
     layer.uv.foreach_get("vector", luv)
     luv = luv.reshape(-1, 2).astype(np.float64)
+    # zero-area triangles (a UV sphere's poles) carry no position: leave them out of the lookup
+    c3 = co_w[tri_v]
+    area2 = np.linalg.norm(np.cross(c3[:, 1] - c3[:, 0], c3[:, 2] - c3[:, 0]), axis=1)
+    good = area2 > 1e-7 * area2.max()
+    tri_v, tri_l = tri_v[good], tri_l[good]
     tuv = luv[tri_l]  # (T, 3, 2)
     flat = [[(float(x), float(y), 0.0) for x, y in t] for t in tuv]
     verts2 = [v for t in flat for v in t]

@@ -47,7 +47,7 @@ def fit_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
     return centre, float(np.sqrt(max(r2, 0.0)))
 
 
-def azimuthal_uv(points: np.ndarray, centre: np.ndarray, pole: np.ndarray) -> np.ndarray:
+def azimuthal_uv(points: np.ndarray, centre: np.ndarray, pole: np.ndarray, return_theta: bool = False):
     """A seamless UV map of a scalp-like cap: the azimuthal equidistant projection of each point's
     direction from ``centre`` about ``pole`` (unit vector through the top of the cap). The pole maps
     to (0.5, 0.5); a direction at angle theta from the pole lies at radius theta / (2 pi), so the whole
@@ -63,12 +63,15 @@ def azimuthal_uv(points: np.ndarray, centre: np.ndarray, pole: np.ndarray) -> np
     theta = np.arccos(np.clip(d @ pole, -1.0, 1.0))
     phi = np.arctan2(d @ e2, d @ e1)
     r = theta / (2.0 * np.pi)
-    return np.stack([0.5 + r * np.cos(phi), 0.5 + r * np.sin(phi)], axis=1).astype(np.float32)
+    uv = np.stack([0.5 + r * np.cos(phi), 0.5 + r * np.sin(phi)], axis=1).astype(np.float32)
+    return (uv, theta) if return_theta else uv
 
 
-def scalp_uv(points: np.ndarray) -> np.ndarray:
-    """UVs (N, 2) for scalp vertices without a UV map: sphere fit, pole through the cap's mean."""
-    p = np.asarray(points, dtype=np.float64)
+def scalp_uv(points: np.ndarray, scalp: np.ndarray | None = None, return_theta: bool = False):
+    """UVs (N, 2) for vertices without a UV map: a sphere fitted to the scalp vertices (``scalp``,
+    default all points), projected about the pole through the scalp's mean. Points outside the scalp
+    (the rest of a head mesh) get distinct UVs too, farther from the centre."""
+    p = np.asarray(points if scalp is None else scalp, dtype=np.float64)
     if len(p) >= 4:
         centre, _ = fit_sphere(p)
     else:
@@ -76,4 +79,26 @@ def scalp_uv(points: np.ndarray) -> np.ndarray:
     pole = p.mean(axis=0) - centre
     if not np.all(np.isfinite(pole)) or np.linalg.norm(pole) < 1e-9:
         pole = np.array([0.0, 0.0, 1.0])
-    return azimuthal_uv(p, centre, pole)
+    return azimuthal_uv(np.asarray(points, dtype=np.float64), centre, pole, return_theta)
+
+
+# where faces far from the scalp put their UVs: outside the disk that holds every face within
+# FOLD_ANGLE of the pole, as zero-area UV triangles that contain no other UV
+FOLD_ANGLE = np.deg2rad(135.0)
+PARKED_UV = (0.98, 0.98)
+
+
+def loop_uvs(points: np.ndarray, scalp: np.ndarray, loop_vertex: np.ndarray, loop_face: np.ndarray) -> np.ndarray:
+    """Per-loop UVs (L, 2) of a mesh (points (V, 3), loop_vertex (L,), loop_face (L,)) by
+    :func:`scalp_uv` about the ``scalp`` points. Near the pole's antipode the projection wraps
+    around, and faces there would cover the scalp's UVs; so every face with a vertex beyond
+    FOLD_ANGLE from the pole gets all its loops parked at PARKED_UV, which keeps the map free of
+    overlaps (Blender's hair attachment finds a curve's triangle from its UV)."""
+    uv_v, theta = scalp_uv(points, scalp, return_theta=True)
+    far = theta[loop_vertex] > FOLD_ANGLE
+    nfaces = int(loop_face.max()) + 1 if len(loop_face) else 0
+    bad = np.zeros(nfaces, bool)
+    np.logical_or.at(bad, loop_face, far)
+    uv = uv_v[loop_vertex].copy()
+    uv[bad[loop_face]] = PARKED_UV
+    return uv
