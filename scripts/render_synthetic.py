@@ -1,0 +1,531 @@
+"""Render a synthetic multi-view capture of a hairstyle on a head with Blender Cycles.
+
+Runs as ``python scripts/render_synthetic.py ARGS`` (the ``bpy`` module) and as
+``blender -b -P scripts/render_synthetic.py -- ARGS``. Input: any ``.hair`` file and the head PLY
+(metres, Z up, face toward -Y). Output: a capture folder that ``hairrecon_core::capture::Capture::load``
+accepts, laid out as ``docs/capture-format.md`` describes:
+
+    capture.json, images/, masks/, gt/orientation/, gt/depth/, gt/strands.hair, head.ply, scalp.ply,
+    fusion/depth/ (depth maps for the raw mesh), raw_mesh.ply, scene.blend
+
+The scene follows the paper's synthetic benchmark (Dr.Hair, supplement 1.1): a white uniform
+environment, cameras evenly on the upper hemisphere around the head (a Fibonacci lattice), portrait
+2:3 images, hair as Blender hair Curves with a Principled Hair BSDF.
+
+Per view, one Cycles render gives the image, the depth (Cycles' Z pass: planar depth along the optical
+axis, checked), and an AOV that carries, for every camera sample whose first hit is hair, the
+doubled image angle of the strand there: (cos 2θ, sin 2θ, 1). Its pixel average is the hair coverage
+(blue channel: the mask, anti-aliased, 0 where the head hides the hair) and the coverage-weighted mean
+orientation. The projected angle is computed in the shader from the curve tangent and the position
+in camera space, i.e. with the camera's Jacobian, so it is exact per sample.
+
+A second, cheap render per view (1 sample, hair as camera-facing ribbons of a larger radius) gives
+depth maps of the hair volume for ``hairrecon fuse-depth``, which fuses them into ``raw_mesh.ply``,
+the stand-in for a photogrammetry mesh.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _hairio as hio  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+
+PRESETS = {
+    # strands only matter to make_benchmark.py (it asks synth-hair for that many); views, height, samples here.
+    "test": dict(strands=2000, views=16, height=256, samples=16),
+    "paper": dict(strands=50000, views=58, height=512, samples=32),
+}
+
+# Principled Hair BSDF settings per colour name: melanin-based or colour-based parametrization.
+COLORS = {
+    "black": dict(parametrization="MELANIN", melanin=0.95, redness=0.1),
+    "brown": dict(parametrization="MELANIN", melanin=0.6, redness=0.35),
+    "gold": dict(parametrization="MELANIN", melanin=0.22, redness=0.3),
+    "gray": dict(parametrization="COLOR", color=(0.5, 0.5, 0.52)),
+    "blue": dict(parametrization="COLOR", color=(0.04, 0.12, 0.6)),
+    "red": dict(parametrization="COLOR", color=(0.65, 0.06, 0.03)),
+}
+
+
+def parse_args(argv=None):
+    if argv is None:
+        argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], prog="render_synthetic.py")
+    p.add_argument("hair", type=Path, help="strands as Cem Yuksel's .hair")
+    p.add_argument("head", type=Path, help="head mesh PLY (metres, Z up, face toward -Y)")
+    p.add_argument("out", type=Path, help="capture folder to write (created; existing files are replaced)")
+    p.add_argument("--scalp", type=Path, help="scalp mesh PLY to copy into the capture as scalp.ply")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="test")
+    p.add_argument("--views", type=int, help="number of cameras (preset: test 16, paper 58)")
+    p.add_argument("--height", type=int, help="image height in pixels, width = 2/3 of it (test 256, paper 512)")
+    p.add_argument("--samples", type=int, help="Cycles samples per pixel (test 16, paper 32)")
+    p.add_argument("--color", choices=sorted(COLORS), default="brown", help="hair colour")
+    p.add_argument("--seed", type=int, default=0, help="Cycles seed and colour randomness")
+    p.add_argument("--hair-scale", type=float, default=1.0, help="multiply hair coordinates (e.g. 0.01 for cm)")
+    p.add_argument("--hair-up", choices=["z", "y"], default="z", help="the hair file's up axis (y: x,y,z -> x,-z,y)")
+    p.add_argument(
+        "--hair-axes",
+        help="general axis map applied before scaling, e.g. 'z,-x,-y' (overrides --hair-up)",
+    )
+    p.add_argument("--hair-offset", type=float, nargs=3, default=(0.0, 0.0, 0.0), help="added after scaling (metres)")
+    p.add_argument("--radius-mm", type=float, default=0.04, help="strand radius in millimetres")
+    p.add_argument("--curve-shape", choices=["THICK", "RIBBONS"], default="THICK")
+    p.add_argument("--distance", type=float, default=1.0, help="camera distance from the head centre (metres)")
+    p.add_argument(
+        "--min-elevation", type=float, default=0.0, help="lowest camera elevation in degrees above the head centre"
+    )
+    p.add_argument(
+        "--fusion-radius-mm",
+        type=float,
+        help="hair radius for the fusion depth maps (default: the median distance between neighbouring roots)",
+    )
+    p.add_argument("--voxel-mm", type=float, default=2.0, help="TSDF voxel size for raw_mesh.ply")
+    p.add_argument("--hairrecon-bin", help="the hairrecon binary (default: target/release/hairrecon, then PATH)")
+    p.add_argument("--no-fuse", action="store_true", help="skip raw_mesh.ply (run hairrecon fuse-depth later)")
+    p.add_argument("--no-blend", action="store_true", help="do not save scene.blend")
+    p.add_argument("--only-view", type=int, help="render only this view (for pictures); implies --no-fuse")
+    p.add_argument("--threads", type=int, default=0, help="Cycles threads (0: all cores)")
+    a = p.parse_args(argv)
+    for k, v in PRESETS[a.preset].items():
+        if k != "strands" and getattr(a, k) is None:
+            setattr(a, k, v)
+    return a
+
+
+# ---------------------------------------------------------------------------------------------
+# Geometry helpers (no bpy)
+# ---------------------------------------------------------------------------------------------
+
+
+def map_axes(points: np.ndarray, spec: str) -> np.ndarray:
+    """Applies an axis map like 'z,-x,-y': new x = old z, new y = -old x, new z = -old y."""
+    cols = []
+    for tok in spec.replace(" ", "").split(","):
+        sign = -1.0 if tok.startswith("-") else 1.0
+        cols.append(sign * points[:, "xyz".index(tok.lstrip("+-"))])
+    if len(cols) != 3:
+        raise SystemExit(f"--hair-axes {spec!r}: give three axes like 'z,-x,-y'")
+    return np.stack(cols, axis=1)
+
+
+def fibonacci_hemisphere(n: int, min_elevation_deg: float = 0.0) -> np.ndarray:
+    """n unit directions spread evenly over the cap z >= sin(min_elevation) (a Fibonacci lattice)."""
+    z0 = math.sin(math.radians(min_elevation_deg))
+    i = np.arange(n) + 0.5
+    z = z0 + (1.0 - z0) * i / n  # the first camera is the lowest
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = (i - 0.5) * math.pi * (3.0 - math.sqrt(5.0)) - math.pi / 2  # the first camera looks at the face (from -Y)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def look_at_rt(eye: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV R, t of a camera at eye looking at target with world Z up in the image."""
+    f = target - eye
+    f /= np.linalg.norm(f)
+    x = np.cross(f, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(f, x)
+    r = np.stack([x, y, f])
+    return r, -r @ eye
+
+
+def median_root_spacing(roots: np.ndarray, sample: int = 2000, seed: int = 0) -> float:
+    """Median distance from a root to its nearest other root (on up to `sample` roots)."""
+    if len(roots) < 2:
+        return 0.0
+    rng = np.random.default_rng(seed)
+    pick = roots[rng.choice(len(roots), size=min(sample, len(roots)), replace=False)]
+    best = np.full(len(pick), np.inf)
+    for s in range(0, len(roots), 4096):
+        d = np.linalg.norm(pick[:, None, :] - roots[None, s : s + 4096, :], axis=2)
+        d[d < 1e-9] = np.inf
+        best = np.minimum(best, d.min(axis=1))
+    return float(np.median(best))
+
+
+# ---------------------------------------------------------------------------------------------
+# Scene
+# ---------------------------------------------------------------------------------------------
+
+
+def build_scene(bpy, a, head_path: Path, pts: np.ndarray, counts: np.ndarray):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    sc.render.engine = "CYCLES"
+    sc.cycles.device = "CPU"
+    sc.cycles.use_adaptive_sampling = False
+    sc.cycles.use_denoising = False
+    sc.cycles.seed = a.seed
+    sc.cycles_curves.shape = a.curve_shape
+    sc.render.threads_mode = "FIXED" if a.threads else "AUTO"
+    if a.threads:
+        sc.render.threads = a.threads
+    sc.view_settings.view_transform = "Standard"
+    sc.render.film_transparent = False
+
+    world = bpy.data.worlds.new("white")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    sc.world = world
+
+    bpy.ops.wm.ply_import(filepath=str(head_path), forward_axis="Y", up_axis="Z")
+    head = bpy.context.selected_objects[0]
+    head.name = "head"
+    skin = bpy.data.materials.new("skin")
+    skin.use_nodes = True
+    bsdf = skin.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.8, 0.57, 0.45, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.5
+    head.data.materials.clear()
+    head.data.materials.append(skin)
+    for poly in head.data.polygons:
+        poly.use_smooth = True
+
+    cv = bpy.data.hair_curves.new("hair")
+    cv.add_curves([int(c) for c in counts])
+    cv.attributes["position"].data.foreach_set("vector", pts.astype(np.float32).ravel())
+    if "radius" not in cv.attributes:
+        cv.attributes.new("radius", "FLOAT", "POINT")
+    hair = bpy.data.objects.new("hair", cv)
+    sc.collection.objects.link(hair)
+    set_radius(cv, a.radius_mm * 1e-3)
+    cv.materials.append(hair_material(bpy, a))
+
+    vl = sc.view_layers[0]
+    vl.use_pass_z = True
+    aov = vl.aovs.add()
+    aov.name = "orient"
+    aov.type = "COLOR"
+    ims = sc.render.image_settings
+    ims.media_type = "MULTI_LAYER_IMAGE"
+    ims.color_depth = "32"
+    ims.exr_codec = "ZIP"
+    return sc, hair, head
+
+
+def set_radius(cv, radius: float):
+    cv.attributes["radius"].data.foreach_set("value", np.full(len(cv.points), radius, np.float32))
+    cv.update_tag()
+
+
+def hair_material(bpy, a):
+    """Principled Hair BSDF, plus the orientation AOV: (cos 2θ, sin 2θ, 1) of the projected tangent.
+
+    With T and P the tangent and position in Blender camera space (x right, y up, z backward), the
+    image-space direction of the strand (u right, v down) is (du, dv) ∝ (C.y, C.x), C = T × P."""
+    m = bpy.data.materials.new("hair")
+    m.use_nodes = True
+    nt = m.node_tree
+    nodes, links = nt.nodes, nt.links
+    for n in list(nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            nodes.remove(n)
+    out = next(n for n in nodes if n.type == "OUTPUT_MATERIAL")
+    hb = nodes.new("ShaderNodeBsdfHairPrincipled")
+    c = COLORS[a.color]
+    hb.parametrization = c["parametrization"]
+    if c["parametrization"] == "MELANIN":
+        hb.inputs["Melanin"].default_value = c["melanin"]
+        hb.inputs["Melanin Redness"].default_value = c["redness"]
+    else:
+        hb.inputs["Color"].default_value = (*c["color"], 1.0)
+    hb.inputs["Roughness"].default_value = 0.3
+    hb.inputs["Random Color"].default_value = 0.1
+    links.new(hb.outputs[0], out.inputs["Surface"])
+
+    geo = nodes.new("ShaderNodeNewGeometry")
+    tcam = nodes.new("ShaderNodeVectorTransform")
+    tcam.vector_type, tcam.convert_from, tcam.convert_to = "VECTOR", "WORLD", "CAMERA"
+    pcam = nodes.new("ShaderNodeVectorTransform")
+    pcam.vector_type, pcam.convert_from, pcam.convert_to = "POINT", "WORLD", "CAMERA"
+    links.new(geo.outputs["Tangent"], tcam.inputs[0])
+    links.new(geo.outputs["Position"], pcam.inputs[0])
+    cross = nodes.new("ShaderNodeVectorMath")
+    cross.operation = "CROSS_PRODUCT"
+    links.new(tcam.outputs[0], cross.inputs[0])
+    links.new(pcam.outputs[0], cross.inputs[1])
+    sep = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(cross.outputs[0], sep.inputs[0])
+
+    def math(op, x, y):
+        n = nodes.new("ShaderNodeMath")
+        n.operation = op
+        for i, v in enumerate((x, y)):
+            if isinstance(v, float):
+                n.inputs[i].default_value = v
+            else:
+                links.new(v, n.inputs[i])
+        return n.outputs[0]
+
+    du, dv = sep.outputs["Y"], sep.outputs["X"]
+    uu, vv = math("MULTIPLY", du, du), math("MULTIPLY", dv, dv)
+    norm = math("ADD", math("ADD", uu, vv), 1e-30)
+    c2 = math("DIVIDE", math("SUBTRACT", uu, vv), norm)
+    s2 = math("DIVIDE", math("MULTIPLY", math("MULTIPLY", du, dv), 2.0), norm)
+    comb = nodes.new("ShaderNodeCombineXYZ")
+    links.new(c2, comb.inputs[0])
+    links.new(s2, comb.inputs[1])
+    comb.inputs[2].default_value = 1.0
+    aov = nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = "orient"
+    links.new(comb.outputs[0], aov.inputs["Color"])
+    return m
+
+
+def add_cameras(bpy, sc, a, target: np.ndarray, radius: float):
+    """One camera object per view. Returns [(name, object, K, R, t)] with K, R, t from bpy's matrices."""
+    h = a.height
+    w = int(round(h * 2 / 3))
+    sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = w, h, 100
+    sc.render.pixel_aspect_x = sc.render.pixel_aspect_y = 1.0
+    # Fit the bounding sphere (plus 4%) into the image width: fx = (W/2) / tan(asin(r/D)).
+    half = math.asin(min(0.99, 1.04 * radius / a.distance))
+    fx = 0.5 * w / math.tan(half)
+    sensor = 36.0
+    lens = fx * sensor / w
+    mathutils = sys.modules["mathutils"]
+    cams = []
+    for i, d in enumerate(fibonacci_hemisphere(a.views, a.min_elevation)):
+        name = f"view_{i:03d}"
+        cam = bpy.data.cameras.new(name)
+        cam.sensor_fit = "HORIZONTAL"
+        cam.sensor_width = sensor
+        cam.lens = lens
+        cam.clip_start = 0.05
+        cam.clip_end = 100.0
+        ob = bpy.data.objects.new(name, cam)
+        sc.collection.objects.link(ob)
+        eye = target + a.distance * d
+        r_cv, t_cv = look_at_rt(eye, target)
+        # Blender camera axes: x right, y up, z backward = OpenCV's (x, -y, -z).
+        rot_b = (np.diag([1.0, -1.0, -1.0]) @ r_cv).T
+        m = np.eye(4)
+        m[:3, :3] = rot_b
+        m[:3, 3] = eye
+        ob.matrix_world = mathutils.Matrix(m.tolist())
+        cams.append((name, ob))
+    bpy.context.view_layer.update()
+    out = []
+    for name, ob in cams:
+        k, r, t = opencv_camera(sc, ob)
+        out.append((name, ob, k, r, t))
+    return out
+
+
+def opencv_camera(sc, ob):
+    """K, R, t of a Blender camera, exactly as docs/blender-notes.md derives them."""
+    cam = ob.data
+    rd = sc.render
+    w = rd.resolution_x * rd.resolution_percentage / 100
+    h = rd.resolution_y * rd.resolution_percentage / 100
+    pa = rd.pixel_aspect_y / rd.pixel_aspect_x
+    fit = cam.sensor_fit
+    if fit == "AUTO":
+        fit = "HORIZONTAL" if rd.pixel_aspect_x * w >= rd.pixel_aspect_y * h else "VERTICAL"
+    view = w if fit == "HORIZONTAL" else pa * h
+    sensor = cam.sensor_height if cam.sensor_fit == "VERTICAL" else cam.sensor_width
+    fx = cam.lens / sensor * view
+    fy = fx / pa
+    cx = (w - 1) / 2 - cam.shift_x * view
+    cy = (h - 1) / 2 + cam.shift_y * view / pa
+    k = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    m = np.array(ob.matrix_world.normalized())
+    r = np.diag([1.0, -1.0, -1.0]) @ m[:3, :3].T
+    t = -r @ m[:3, 3]
+    return k, r, t
+
+
+def render_exr(bpy, sc, path: Path) -> dict:
+    sc.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    return hio.read_exr(path)
+
+
+def depth_exr(path: Path, z: np.ndarray):
+    """Depth along the optical axis in metres, 0 where no surface; R = G = B = depth."""
+    z = np.where(z < 1e9, z, 0.0).astype(np.float32)
+    hio.write_exr(path, {"R": z, "G": z, "B": z})
+
+
+def find_hairrecon(explicit: str | None) -> str | None:
+    if explicit:
+        return explicit
+    cand = REPO / "target" / "release" / "hairrecon"
+    if cand.is_file():
+        return str(cand)
+    return shutil.which("hairrecon")
+
+
+def main(argv=None):
+    a = parse_args(argv)
+    t_start = time.time()
+    import bpy  # noqa: PLC0415  (imported late so that --help works without Blender)
+    import mathutils  # noqa: F401, PLC0415
+
+    pts, counts = hio.read_hair(a.hair)
+    pts = pts.astype(np.float64)
+    axes = a.hair_axes or ("x,-z,y" if a.hair_up == "y" else "x,y,z")
+    pts = map_axes(pts, axes) * a.hair_scale + np.asarray(a.hair_offset)
+    head_v, head_f = hio.read_ply(a.head)
+    out = a.out.resolve()
+    for sub in ("images", "masks", "gt/orientation", "gt/depth", "fusion/depth", "_tmp"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    hio.write_hair(out / "gt" / "strands.hair", pts, counts, info="hairrecon render_synthetic.py ground truth")
+    shutil.copyfile(a.head, out / "head.ply")
+    if a.scalp:
+        shutil.copyfile(a.scalp, out / "scalp.ply")
+
+    sc, hair, _head = build_scene(bpy, a, out / "head.ply", pts, counts)
+    allp = np.concatenate([pts, head_v])
+    lo, hi = allp.min(0), allp.max(0)
+    target = 0.5 * (lo + hi)
+    radius = float(np.linalg.norm(allp - target, axis=1).max())
+    cams = add_cameras(bpy, sc, a, target, radius)
+    w, h = sc.render.resolution_x, sc.render.resolution_y
+    print(
+        f"render_synthetic: {len(counts)} strands, {len(pts)} points, {a.views} views of {w}x{h}, "
+        f"{a.samples} spp, colour {a.color}, lens {cams[0][1].data.lens:.1f} mm at {a.distance} m",
+        flush=True,
+    )
+    views = range(len(cams)) if a.only_view is None else [a.only_view]
+
+    # Pass 1: the photographs, masks, ground-truth orientation and depth.
+    sc.cycles.samples = a.samples
+    for n, i in enumerate(views):
+        name, ob, *_ = cams[i]
+        t0 = time.time()
+        sc.camera = ob
+        ex = render_exr(bpy, sc, out / "_tmp" / f"{name}.exr")
+        rgb = np.stack([ex[f"ViewLayer.Combined.{c}"] for c in "RGB"], axis=2)
+        hio.write_png(out / "images" / f"{name}.png", hio.linear_to_srgb8(rgb))
+        o = np.stack([ex[f"ViewLayer.orient.{c}"] for c in "RGB"], axis=2)
+        cov = np.clip(o[:, :, 2], 0.0, 1.0)
+        hio.write_png(out / "masks" / f"{name}.png", np.round(cov * 65535).astype(np.uint16))
+        vec = o[:, :, :2]
+        nrm = np.linalg.norm(vec, axis=2)
+        hair_px = cov > 0
+        unit = np.where(nrm[:, :, None] > 1e-12, vec / np.maximum(nrm, 1e-12)[:, :, None], 0.0)
+        unit[~hair_px] = 0.0
+        coherence = np.where(hair_px, np.clip(nrm / np.maximum(cov, 1e-12), 0.0, 1.0), 0.0)
+        hio.write_exr(
+            out / "gt" / "orientation" / f"{name}.exr",
+            {"R": unit[:, :, 0], "G": unit[:, :, 1], "B": hair_px.astype(np.float32), "A": coherence},
+        )
+        depth_exr(out / "gt" / "depth" / f"{name}.exr", ex["ViewLayer.Depth.Z"])
+        print(
+            f"  view {n + 1}/{len(views)} {name}: {time.time() - t0:.1f} s, hair pixels {int(hair_px.sum())}",
+            flush=True,
+        )
+
+    # Pass 2: depth of the hair volume for the raw mesh (ribbons through the centrelines, so the
+    # depth is that of the strands themselves, not of a tube's surface).
+    roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]
+    fr = a.fusion_radius_mm * 1e-3 if a.fusion_radius_mm else median_root_spacing(roots)
+    fr = max(fr, a.radius_mm * 1e-3)
+    t_fusion = time.time()
+    if a.only_view is None:
+        set_radius(hair.data, fr)
+        sc.cycles_curves.shape = "RIBBONS"
+        sc.cycles.samples = 1
+        sc.cycles.max_bounces = 0
+        filt = sc.cycles.filter_width
+        sc.cycles.filter_width = 0.01
+        for i, (name, ob, *_) in enumerate(cams):
+            sc.camera = ob
+            ex = render_exr(bpy, sc, out / "_tmp" / f"{name}.exr")
+            depth_exr(out / "fusion" / "depth" / f"{name}.exr", ex["ViewLayer.Depth.Z"])
+        print(f"  fusion depth maps ({a.views} views, hair radius {fr * 1e3:.2f} mm): {time.time() - t_fusion:.1f} s")
+        # Back to the photographed scene for scene.blend.
+        set_radius(hair.data, a.radius_mm * 1e-3)
+        sc.cycles_curves.shape = a.curve_shape
+        sc.cycles.samples = a.samples
+        sc.cycles.max_bounces = 12
+        sc.cycles.filter_width = filt
+    shutil.rmtree(out / "_tmp", ignore_errors=True)
+
+    spec = {
+        "version": 1,
+        "units": "metres",
+        "convention": "opencv",
+        "views": [
+            {
+                "name": name,
+                "image": f"images/{name}.png",
+                "mask": f"masks/{name}.png",
+                "width": w,
+                "height": h,
+                "K": k.tolist(),
+                "R": r.tolist(),
+                "t": t.tolist(),
+                "gt_orientation": f"gt/orientation/{name}.exr",
+                "gt_depth": f"gt/depth/{name}.exr",
+            }
+            for i, (name, _ob, k, r, t) in enumerate(cams)
+            if i in views
+        ],
+        "raw_mesh": "raw_mesh.ply",
+        "head_mesh": "head.ply",
+        "gt_strands": "gt/strands.hair",
+    }
+    if a.scalp:
+        spec["scalp_mesh"] = "scalp.ply"
+    (out / "capture.json").write_text(json.dumps(spec, indent=2))
+    meta = {
+        "hair": str(a.hair),
+        "strands": int(len(counts)),
+        "points": int(len(pts)),
+        "color": a.color,
+        "preset": a.preset,
+        "samples": a.samples,
+        "radius_mm": a.radius_mm,
+        "curve_shape": a.curve_shape,
+        "fusion_radius_mm": fr * 1e3,
+        "distance_m": a.distance,
+        "seed": a.seed,
+        "blender": bpy.app.version_string,
+    }
+    (out / "render_info.json").write_text(json.dumps(meta, indent=2))
+    if not a.no_blend:
+        sc.camera = cams[views[0]][1]
+        bpy.ops.wm.save_as_mainfile(filepath=str(out / "scene.blend"), compress=True)
+    t_render = time.time() - t_start
+    print(f"render_synthetic: rendered in {t_render:.1f} s", flush=True)
+
+    if a.no_fuse or a.only_view is not None:
+        print(f"render_synthetic: now run: hairrecon fuse-depth {out} --depth-dir fusion/depth", flush=True)
+        return 0
+    exe = find_hairrecon(a.hairrecon_bin)
+    if exe is None:
+        print(
+            "render_synthetic: no hairrecon binary (build it: cargo build --release -p hairrecon-cli); "
+            f"then run: hairrecon fuse-depth {out} --depth-dir fusion/depth",
+            file=sys.stderr,
+        )
+        return 2
+    cmd = [exe, "fuse-depth", str(out), "--depth-dir", "fusion/depth", "--voxel-mm", str(a.voxel_mm)]
+    print("render_synthetic: " + " ".join(cmd), flush=True)
+    t0 = time.time()
+    rc = subprocess.call(cmd)
+    print(f"render_synthetic: fuse-depth {time.time() - t0:.1f} s; total {time.time() - t_start:.1f} s", flush=True)
+    return rc
+
+
+if __name__ == "__main__":
+    rc = main()
+    # Under `blender -b -P`, sys.exit would stop Blender with a traceback-free code, which is what we want.
+    sys.exit(rc)
