@@ -117,3 +117,43 @@ fn errors_name_the_file_and_leave_no_output() {
     assert!(matches!(e.kind, FormatErrorKind::Io(_)) && e.to_string().contains("missing.exr"), "{e}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn corrupt_png_and_exr_files_give_errors_not_panics() {
+    let d = tmp_dir("fuzz");
+    let mut rng = Rng(99);
+    let vals: Vec<f32> = (0..16 * 12).map(|_| rng.f32()).collect();
+    let g = GrayImage32::new(16, 12, vals).unwrap();
+    write_png16_gray(d.join("a.png"), &g).unwrap();
+    write_exr_gray_f32(d.join("a.exr"), &g).unwrap();
+    for name in ["a.png", "a.exr"] {
+        let valid = std::fs::read(d.join(name)).unwrap();
+        let (mut ok, mut err) = (0, 0);
+        for case in 0..2_000 {
+            let mut b = valid.clone();
+            match rng.next() % 3 {
+                0 => {
+                    for _ in 0..1 + rng.next() % 4 {
+                        let i = (rng.next() % b.len() as u64) as usize;
+                        b[i] = rng.next() as u8;
+                    }
+                }
+                1 => b.truncate((rng.next() % b.len() as u64) as usize),
+                _ => {
+                    let at = (rng.next() % b.len() as u64) as usize;
+                    b.insert(at, rng.next() as u8);
+                }
+            }
+            let r =
+                std::panic::catch_unwind(|| (read_gray_f32_bytes(&b).map(|_| ()), read_rgb_f32_bytes(&b).map(|_| ())));
+            match r {
+                Ok((Ok(()), Ok(()))) => ok += 1,
+                Ok(_) => err += 1,
+                Err(_) => panic!("{name}: case {case} panicked"),
+            }
+        }
+        println!("{name}: 2000 corruptions, {ok} read, {err} rejected");
+        assert!(err > 500, "{name}: {err}");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
