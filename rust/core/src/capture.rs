@@ -144,7 +144,7 @@ impl Capture {
         if spec.units != "metres" && spec.units != "meters" {
             return Err(CaptureError::Units { path: json.into(), found: spec.units });
         }
-        if spec.convention.to_ascii_lowercase() != "opencv" {
+        if !spec.convention.eq_ignore_ascii_case("opencv") {
             return Err(CaptureError::Convention { path: json.into(), found: spec.convention });
         }
         if spec.views.is_empty() {

@@ -1,7 +1,211 @@
-//! `hairrecon.Reconstruction` and `hairrecon.reconstruct` (added when the pipeline lands).
+//! `hairrecon.Reconstruction` (a background job Blender can poll and cancel) and
+//! `hairrecon.reconstruct` (the same, synchronous, for batch runs and tests).
+//!
+//! The job runs `hairrecon_recon::pipeline::reconstruct` on a plain Rust thread. Progress lives in
+//! a `SharedProgress` (atomics + a mutex), so `progress()` and `cancel()` only touch that state and
+//! never call back into Python from the worker (bpy is not thread-safe).
 
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+use hairrecon_core::capture::Capture;
+use hairrecon_recon::pipeline::{
+    reconstruct as run_pipeline, ReconError, ReconstructOptions, ReconstructOutput, Stage,
+};
+use hairrecon_recon::progress::{Progress, SharedProgress};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
-pub fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+use crate::error::{to_py, Cancelled, HairreconError};
+
+type Outcome = Result<ReconstructOutput, String>;
+
+fn options(
+    guides: usize,
+    children: usize,
+    stop_after: Option<&str>,
+    seed: u64,
+    global_opt: bool,
+    strand_init: bool,
+) -> PyResult<ReconstructOptions> {
+    let stop_after = match stop_after {
+        None => None,
+        Some(s) => Some(s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("stop_after: {e}")))?),
+    };
+    if guides == 0 || children == 0 {
+        return Err(HairreconError::new_err("guides and children must be at least 1"));
+    }
+    Ok(ReconstructOptions { guides, children, stop_after, seed, global_opt, strand_init, ..Default::default() })
+}
+
+/// Runs the whole pipeline; any error or panic becomes a message (cancellation is kept apart).
+fn run(
+    capture_dir: &std::path::Path,
+    out_dir: &std::path::Path,
+    opts: &ReconstructOptions,
+    progress: &dyn Progress,
+) -> Result<ReconstructOutput, RunError> {
+    let capture = Capture::load(capture_dir).map_err(|e| RunError::Failed(e.to_string()))?;
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_pipeline(&capture, out_dir, opts, progress))) {
+        Ok(Ok(out)) => Ok(out),
+        Ok(Err(ReconError::Cancelled(_))) => Err(RunError::Cancelled),
+        Ok(Err(e)) => Err(RunError::Failed(e.to_string())),
+        Err(_) => Err(RunError::Failed("internal error in the hairrecon pipeline (please report it)".into())),
+    }
+}
+
+#[derive(Debug)]
+enum RunError {
+    Cancelled,
+    Failed(String),
+}
+
+fn output_to_py<'py>(py: Python<'py>, out: &ReconstructOutput) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("strands", out.strands.clone())?;
+    d.set_item("guides", out.guides.clone())?;
+    d.set_item("stage_times", out.stage_times.clone())?;
+    d.set_item("metrics", crate::json_to_py(py, &out.metrics)?)?;
+    Ok(d)
+}
+
+fn run_error_to_py(e: RunError) -> PyErr {
+    match e {
+        RunError::Cancelled => Cancelled::new_err("reconstruction cancelled by the user; nothing was written"),
+        RunError::Failed(m) => HairreconError::new_err(m),
+    }
+}
+
+/// A reconstruction running in the background.
+///
+/// ```python
+/// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000)
+/// job.start()
+/// while not job.done():
+///     fraction, text = job.progress()
+/// result = job.result()   # dict, or raises HairreconError / Cancelled
+/// ```
+#[derive(Debug)]
+#[pyclass(module = "hairrecon")]
+pub struct Reconstruction {
+    capture_dir: PathBuf,
+    out_dir: PathBuf,
+    opts: ReconstructOptions,
+    progress: Arc<SharedProgress>,
+    handle: Mutex<Option<JoinHandle<Result<ReconstructOutput, RunError>>>>,
+    outcome: Mutex<Option<Outcome>>,
+    cancelled: std::sync::atomic::AtomicBool,
+}
+
+#[pymethods]
+impl Reconstruction {
+    #[new]
+    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true))]
+    fn new(
+        capture_dir: PathBuf,
+        out_dir: PathBuf,
+        guides: usize,
+        children: usize,
+        stop_after: Option<&str>,
+        seed: u64,
+        global_opt: bool,
+        strand_init: bool,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            capture_dir,
+            out_dir,
+            opts: options(guides, children, stop_after, seed, global_opt, strand_init)?,
+            progress: Arc::new(SharedProgress::new()),
+            handle: Mutex::new(None),
+            outcome: Mutex::new(None),
+            cancelled: std::sync::atomic::AtomicBool::new(false),
+        })
+    }
+
+    /// Starts the work on a background thread. Raises if it was already started.
+    fn start(&self) -> PyResult<()> {
+        let mut h = self.handle.lock().map_err(to_py)?;
+        if h.is_some() || self.outcome.lock().map_err(to_py)?.is_some() {
+            return Err(HairreconError::new_err("this reconstruction was already started"));
+        }
+        let (c, o, opts, p) =
+            (self.capture_dir.clone(), self.out_dir.clone(), self.opts.clone(), self.progress.clone());
+        let handle = std::thread::Builder::new()
+            .name("hairrecon-reconstruct".into())
+            .spawn(move || run(&c, &o, &opts, p.as_ref()))
+            .map_err(to_py)?;
+        *h = Some(handle);
+        Ok(())
+    }
+
+    /// `(fraction, text)`: progress of the current stage in [0, 1] and a status line.
+    fn progress(&self) -> (f32, String) {
+        self.progress.snapshot()
+    }
+
+    /// Asks the work to stop at its next safe point (within about a second).
+    fn cancel(&self) {
+        self.cancelled.store(true, std::sync::atomic::Ordering::SeqCst);
+        self.progress.request_cancel();
+    }
+
+    /// Whether the work has finished (successfully or not).
+    fn done(&self) -> PyResult<bool> {
+        let h = self.handle.lock().map_err(to_py)?;
+        Ok(match h.as_ref() {
+            Some(h) => h.is_finished(),
+            None => self.outcome.lock().map_err(to_py)?.is_some(),
+        })
+    }
+
+    /// Waits for the work (GIL released) and returns its result dict: `strands`, `guides` (paths or
+    /// None), `stage_times` [(name, seconds)], `metrics` (dict). Raises `Cancelled` or
+    /// `HairreconError`.
+    fn result<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let handle = self.handle.lock().map_err(to_py)?.take();
+        if let Some(h) = handle {
+            let r = py.allow_threads(|| h.join());
+            let outcome = match r {
+                Ok(Ok(out)) => Ok(out),
+                Ok(Err(RunError::Cancelled)) => Err("\u{0}cancelled".to_string()),
+                Ok(Err(RunError::Failed(m))) => Err(m),
+                Err(_) => Err("internal error in the hairrecon worker thread (please report it)".to_string()),
+            };
+            *self.outcome.lock().map_err(to_py)? = Some(outcome);
+        }
+        match self.outcome.lock().map_err(to_py)?.as_ref() {
+            None => Err(HairreconError::new_err("this reconstruction was not started; call start() first")),
+            Some(Ok(out)) => output_to_py(py, out),
+            Some(Err(m)) if m == "\u{0}cancelled" => Err(run_error_to_py(RunError::Cancelled)),
+            Some(Err(m)) => Err(HairreconError::new_err(m.clone())),
+        }
+    }
+}
+
+/// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
+/// while Rust works). Returns the same dict as `Reconstruction.result()`.
+#[pyfunction]
+#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true))]
+fn reconstruct<'py>(
+    py: Python<'py>,
+    capture_dir: PathBuf,
+    out_dir: PathBuf,
+    guides: usize,
+    children: usize,
+    stop_after: Option<&str>,
+    seed: u64,
+    global_opt: bool,
+    strand_init: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let opts = options(guides, children, stop_after, seed, global_opt, strand_init)?;
+    let progress = SharedProgress::new();
+    let out = py.allow_threads(|| run(&capture_dir, &out_dir, &opts, &progress).map_err(run_error_to_py))?;
+    output_to_py(py, &out)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Reconstruction>()?;
+    m.add_function(wrap_pyfunction!(reconstruct, m)?)?;
     Ok(())
 }
