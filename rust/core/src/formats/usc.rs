@@ -23,7 +23,7 @@ use crate::strands::StrandSet;
 pub type UscReadOptions = StrandReadOptions;
 
 const HINT: &str = "; USC-HairSalon marks scalp samples without hair by one-point strands: read with \
-                    skip_short_strands (hairrecon: --skip-short-strands) to drop them";
+                    skip_short_strands (formats::read_strands_with) to drop them";
 
 /// Reads a `.data` file; returns the strands and the number of strands skipped.
 pub fn read_usc(path: impl AsRef<Path>, options: UscReadOptions) -> Result<(StrandSet, usize)> {
