@@ -7,7 +7,7 @@
 //! S(p_s) and follows the unit field by midpoint (RK2) steps of `step`; the field is read by
 //! trilinear interpolation and a step never turns back on the last one (the field's sign is kept
 //! continuous). Growth stops when the strand leaves the hair volume (more than `outer_margin`
-//! outside the raw mesh), when the field vanishes, or at `max_length`. Points that enter the head
+//! outside the raw mesh, or into a voxel that is not hair), when the field vanishes, or at `max_length`. Points that enter the head
 //! are pushed back out along the gradient of its distance. A child takes its `k` nearest guide
 //! roots with inverse-square-distance weights and follows their mean segment vectors step by step
 //! (a guide that has ended drops out of the mean), so children keep their guides' shape with their
@@ -83,7 +83,7 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         let mut q = p + d2 * params.step;
         q = push_out(flow, q, params.head_clearance);
         let Some(so) = flow.grid.trilinear(&flow.sd_outer, q) else { break };
-        if so > params.outer_margin {
+        if so > params.outer_margin || flow.grid.voxel_of(q).map_or(true, |v| flow.label[v] == 0) {
             break;
         }
         let seg = q - p;

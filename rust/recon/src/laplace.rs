@@ -6,7 +6,8 @@
 //! outer and inner surfaces that growing needs; saved as `flow.bin` and reloaded from there.
 //!
 //! Follows Dr.Hair's strand initialization (`docs/method.md` §3): the hair volume is the voxels
-//! inside the raw mesh (up to `outer_margin` outside it) and outside the head; Dirichlet conditions
+//! inside the raw mesh (up to `outer_margin` outside it), outside the head and within
+//! `max_point_dist` of a directed point (so the face, the neck and bald scalp are not hair); Dirichlet conditions
 //! are the confidence-weighted mean direction of the directed points in a voxel, and S(p_s) at the
 //! voxels within one voxel of the scalp; every other voxel of the volume satisfies the discrete
 //! Laplace equation (6-neighbour graph Laplacian, zero flux across the volume's boundary). The three
@@ -20,6 +21,7 @@ use glam::Vec3;
 use hairrecon_core::Bvh;
 use rayon::prelude::*;
 
+use crate::metrics::PointIndex;
 use crate::points3d::{OrientedPoints, PointsError};
 use crate::progress::{Cancelled, Progress};
 use crate::roots::{scalp_point, Scalp};
@@ -98,6 +100,9 @@ pub struct LaplaceParams {
     pub voxel: f32,
     /// Voxels up to this far outside the raw mesh belong to the hair volume, metres.
     pub outer_margin: f32,
+    /// Voxels farther than this from every directed point are not hair (face, neck, bald scalp),
+    /// metres.
+    pub max_point_dist: f32,
     pub max_iterations: usize,
     /// Relative residual at which CG stops.
     pub tolerance: f32,
@@ -105,7 +110,7 @@ pub struct LaplaceParams {
 
 impl Default for LaplaceParams {
     fn default() -> Self {
-        Self { voxel: 0.004, outer_margin: 0.004, max_iterations: 400, tolerance: 1e-4 }
+        Self { voxel: 0.004, outer_margin: 0.004, max_point_dist: 0.015, max_iterations: 400, tolerance: 1e-4 }
     }
 }
 
@@ -189,6 +194,16 @@ pub fn solve_flow(
         if sd_outer[i] <= params.outer_margin && sd_inner[i] >= -0.5 * params.voxel {
             label[i] = 1;
         }
+    }
+    progress.check()?;
+    let index = PointIndex::new(points.positions.clone(), points.directions.clone());
+    let far_from_points: Vec<usize> = (0..n)
+        .into_par_iter()
+        .filter(|&i| label[i] == 1)
+        .filter(|&i| index.nearest(grid.centre(i), 1).first().map_or(true, |&(_, d)| d > params.max_point_dist))
+        .collect();
+    for i in far_from_points {
+        label[i] = 0;
     }
     stats.volume_voxels = label.iter().filter(|l| **l > 0).count() as u64;
     let mut fixed = vec![Vec3::ZERO; n];
