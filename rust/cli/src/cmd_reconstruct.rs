@@ -58,7 +58,7 @@ const STEPS: u64 = 1000;
 impl Progress for Bars {
     fn update(&self, stage: &str, fraction: f32, message: &str) {
         let Ok(mut cur) = self.current.lock() else { return };
-        if cur.as_ref().map_or(true, |(s, _)| s != stage) {
+        if cur.as_ref().is_none_or(|(s, _)| s != stage) {
             if let Some((_, pb)) = cur.take() {
                 pb.set_position(STEPS);
                 pb.finish();

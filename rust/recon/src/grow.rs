@@ -83,7 +83,7 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         let mut q = p + d2 * params.step;
         q = push_out(flow, q, params.head_clearance);
         let Some(so) = flow.grid.trilinear(&flow.sd_outer, q) else { break };
-        if so > params.outer_margin || flow.grid.voxel_of(q).map_or(true, |v| flow.label[v] == 0) {
+        if so > params.outer_margin || flow.grid.voxel_of(q).is_none_or(|v| flow.label[v] == 0) {
             break;
         }
         let seg = q - p;

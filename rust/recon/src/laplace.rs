@@ -200,7 +200,7 @@ pub fn solve_flow(
     let far_from_points: Vec<usize> = (0..n)
         .into_par_iter()
         .filter(|&i| label[i] == 1)
-        .filter(|&i| index.nearest(grid.centre(i), 1).first().map_or(true, |&(_, d)| d > params.max_point_dist))
+        .filter(|&i| index.nearest(grid.centre(i), 1).first().is_none_or(|&(_, d)| d > params.max_point_dist))
         .collect();
     for i in far_from_points {
         label[i] = 0;

@@ -80,7 +80,7 @@ impl PointIndex {
         let mut best: Option<(usize, f32)> = None;
         for i in self.within(p, dist) {
             let c = self.tangents[i].dot(t).abs();
-            if c >= cmin && best.map_or(true, |(_, b)| c > b) {
+            if c >= cmin && best.is_none_or(|(_, b)| c > b) {
                 best = Some((i, c));
             }
         }
