@@ -51,6 +51,9 @@ def parse_args(argv):
     ap.add_argument("--render-camera", help="camera for --render (default: the scene camera)")
     ap.add_argument("--render-height", type=int, default=512, help="picture height in pixels (default 512)")
     ap.add_argument("--render-samples", type=int, default=32)
+    ap.add_argument("--render-fit", type=float, default=0.0,
+                    help="frame the head and hair: a picture camera from the chosen camera's side, at a distance "
+                         "where they fill this share of the picture height (e.g. 0.8; 0 = the camera as it is)")
     return ap.parse_args(argv)
 
 
@@ -137,6 +140,44 @@ def write_strands(hr, path: Path, obj):
     hr.write_strands(str(path), np.ascontiguousarray(world), np.diff(off).astype(np.uint32))
 
 
+def framing_camera(bpy, cam, hair, meshes, fill):
+    """A new camera on the line from the centre of the hair and meshes to ``cam``, aimed at it, at the
+    distance where the hair and the given meshes fill ``fill`` of the picture height."""
+    import numpy as np
+    from mathutils import Vector
+
+    pts = []
+    for o in hair:
+        p = np.empty(len(o.data.points) * 3, np.float32)
+        o.data.attributes["position"].data.foreach_get("vector", p)
+        m = np.array(o.matrix_world)
+        pts.append(p.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3])
+    for o in meshes:
+        p = np.empty(len(o.data.vertices) * 3, np.float32)
+        o.data.vertices.foreach_get("co", p)
+        m = np.array(o.matrix_world)
+        pts.append(p.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3])
+    pts = np.concatenate(pts)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = Vector(((lo + hi) / 2).tolist())
+    radius = float(np.linalg.norm(pts - np.array(centre), axis=1).max())
+    data = cam.data.copy()
+    data.shift_x = data.shift_y = 0.0
+    pic = bpy.data.objects.new("hairrecon picture", data)
+    bpy.context.scene.collection.objects.link(pic)
+    direction = (cam.matrix_world.translation - centre).normalized()
+    r = bpy.context.scene.render
+    # vertical field of view of the camera under the scene's render settings
+    import math
+
+    half = math.atan(0.5 * data.sensor_width / data.lens) * (r.resolution_y / r.resolution_x if data.sensor_fit != "VERTICAL" else 1.0)
+    dist = radius / math.tan(half) / fill
+    pic.location = centre + direction * dist
+    pic.rotation_euler = (centre - pic.location).to_track_quat("-Z", "Y").to_euler()
+    data.clip_start, data.clip_end = dist * 0.01, dist * 10
+    return pic
+
+
 def render_picture(bpy, a, hair):
     """A Cycles picture of the head and the new hair; the raw mesh is hidden. Runs after the
     result was saved, so the saved scene keeps its own render settings."""
@@ -146,6 +187,8 @@ def render_picture(bpy, a, hair):
     if cam is None or cam.type != "CAMERA":
         raise Failure(f"--render-camera: no camera named {a.render_camera!r}" if a.render_camera else
                       "--render: the scene has no camera; pass --render-camera")
+    if a.render_fit > 0:
+        cam = framing_camera(bpy, cam, hair, [o for o in (s.head_object, s.scalp_object) if o is not None], a.render_fit)
     scene.camera = cam
     # show the hair, the head and the scalp: hide the raw mesh, the guides and everything else
     keep = {o.name for o in hair if not o.name.endswith("Guides")}
@@ -167,7 +210,7 @@ def render_picture(bpy, a, hair):
     scene.world.use_nodes = True
     bg = scene.world.node_tree.nodes.get("Background")
     if bg is not None:
-        bg.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+        bg.inputs["Color"].default_value = (0.45, 0.46, 0.5, 1.0)
         bg.inputs["Strength"].default_value = 1.0
     r.image_settings.file_format = "PNG"
     r.filepath = str(a.render.resolve())
