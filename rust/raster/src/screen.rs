@@ -1,0 +1,491 @@
+//! Screen-space geometry of line segments, and the chain rule from screen back to 3D.
+//!
+//! In: 3D points (metres) with a [`Camera`], or 2D pixel positions directly, plus segments as pairs
+//! of vertex indices. Out: a [`Screen`]: for each segment one convex primitive, the trapezoid with
+//! corners `a ± n·hw_a`, `b ± n·hw_b` (`n` the unit normal of `b − a`, `hw` the half width in
+//! pixels), or, for [`SegmentShape::Triangle`], the triangle with the root edge `a ± n·hw_a` and the
+//! apex at `b` (Dr.Hair, Figure 5 of the main paper: a segment becomes a triangle). A segment is one
+//! primitive with one id: a quad is never split into two triangles, so its diagonal can never be taken
+//! for a separating edge (a weak spot named in `docs/method.md`).
+//!
+//! Backward: gradients with respect to the four corners of every primitive (from the anti-aliasing
+//! ops) and to its screen direction `b − a` (from the orientation attribute) are mapped to per-vertex
+//! pixel and half-width gradients ([`Screen::backward_vertices`]), then through the projection and
+//! the depth-dependent width to 3D ([`Screen::backward_world`], using [`Camera::camera_jacobian`]).
+//! Segments with a vertex behind the camera or shorter than 1e-6 px are dropped (no clipping).
+
+use glam::{Vec2, Vec3};
+use hairrecon_core::{Camera, StrandSet};
+
+use crate::error::RasterError;
+
+/// How wide a strand is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Width {
+    /// A constant width in pixels.
+    Pixels(f32),
+    /// A width in world units (metres), drawn `w · f_y / z` pixels wide at camera depth `z`.
+    World(f32),
+}
+
+/// The primitive a segment becomes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SegmentShape {
+    /// A trapezoid: full width at both ends.
+    #[default]
+    Quad,
+    /// A triangle: full width at the first vertex, zero at the second (the paper's conversion).
+    Triangle,
+}
+
+/// Everything the projection needs besides the geometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RasterSettings {
+    pub width: Width,
+    pub shape: SegmentShape,
+    /// Also write the unit 3D direction of each segment (3 more attribute channels, no gradient).
+    pub direction_3d: bool,
+}
+
+impl Default for RasterSettings {
+    fn default() -> Self {
+        Self { width: Width::Pixels(1.0), shape: SegmentShape::Quad, direction_3d: false }
+    }
+}
+
+/// One segment's screen primitive.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Prim {
+    /// First vertex (root side) in pixels.
+    pub a: Vec2,
+    /// Unit direction of `b − a`.
+    pub u: Vec2,
+    /// Unit normal, `perp(u) = (−u.y, u.x)`.
+    pub n: Vec2,
+    /// Length of `b − a` in pixels.
+    pub len: f32,
+    /// Half widths at `a` and at `b` (0 at `b` for triangles).
+    pub hw0: f32,
+    pub hw1: f32,
+    /// Camera depths at `a` and `b`.
+    pub z0: f32,
+    pub z1: f32,
+    /// Corners `a + n·hw0`, `b + n·hw1`, `b − n·hw1`, `a − n·hw0`; edge `k` joins corner `k` and `k + 1`.
+    pub corners: [Vec2; 4],
+    /// Pixel bounding box `[xmin, ymin, xmax, ymax]`.
+    pub bbox: [f32; 4],
+    /// `(cos 2θ, sin 2θ)` of the screen direction.
+    pub orient: Vec2,
+    /// Unit 3D direction (zero when not projected from 3D).
+    pub dir3: Vec3,
+    pub valid: bool,
+}
+
+impl Prim {
+    /// Signed position of a point in the primitive's frame: `(t, s)` with `t` in `[0, 1]` along the axis.
+    #[inline]
+    pub fn local(&self, x: Vec2) -> (f32, f32) {
+        let v = x - self.a;
+        (v.dot(self.u) / self.len, v.dot(self.n))
+    }
+
+    /// Whether a point is inside (boundary included).
+    #[inline]
+    pub fn contains(&self, x: Vec2) -> bool {
+        let (t, s) = self.local(x);
+        (0.0..=1.0).contains(&t) && s.abs() <= self.hw0 + (self.hw1 - self.hw0) * t
+    }
+
+    /// Depth at a point inside, interpolated linearly in screen space.
+    #[inline]
+    pub fn depth_at(&self, x: Vec2) -> f32 {
+        let (t, _) = self.local(x);
+        self.z0 + (self.z1 - self.z0) * t.clamp(0.0, 1.0)
+    }
+
+    /// Edge `k` as its two end corners; `None` for the zero-length tip edge of a triangle.
+    #[inline]
+    pub fn edge(&self, k: usize) -> Option<(Vec2, Vec2)> {
+        let e0 = self.corners[k];
+        let e1 = self.corners[(k + 1) & 3];
+        if (e1 - e0).length_squared() < 1e-12 {
+            None
+        } else {
+            Some((e0, e1))
+        }
+    }
+
+    fn build(a: Vec2, b: Vec2, hw0: f32, hw1: f32, z0: f32, z1: f32) -> Self {
+        let d = b - a;
+        let len = d.length();
+        if !(len > 1e-6) {
+            return Prim::default();
+        }
+        let u = d / len;
+        let n = Vec2::new(-u.y, u.x);
+        let corners = [a + n * hw0, b + n * hw1, b - n * hw1, a - n * hw0];
+        let mut bbox = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+        for c in corners {
+            bbox[0] = bbox[0].min(c.x);
+            bbox[1] = bbox[1].min(c.y);
+            bbox[2] = bbox[2].max(c.x);
+            bbox[3] = bbox[3].max(c.y);
+        }
+        let orient = Vec2::new(u.x * u.x - u.y * u.y, 2.0 * u.x * u.y);
+        Prim { a, u, n, len, hw0, hw1, z0, z1, corners, bbox, orient, dir3: Vec3::ZERO, valid: true }
+    }
+}
+
+/// Per-segment gradients produced by the backward ops.
+#[derive(Debug, Clone, Default)]
+pub struct SegmentGrads {
+    /// ∂L/∂corner for the four corners of each primitive.
+    pub corners: Vec<[Vec2; 4]>,
+    /// ∂L/∂(b − a), the screen direction (from the orientation attribute).
+    pub dir: Vec<Vec2>,
+}
+
+impl SegmentGrads {
+    /// Zeroes the gradients for `n` segments, reusing the allocations.
+    pub fn reset(&mut self, n: usize) {
+        self.corners.clear();
+        self.corners.resize(n, [Vec2::ZERO; 4]);
+        self.dir.clear();
+        self.dir.resize(n, Vec2::ZERO);
+    }
+}
+
+/// Per-vertex screen gradients: ∂L/∂pixel position and ∂L/∂half width.
+#[derive(Debug, Clone, Default)]
+pub struct VertexGrads {
+    pub pos: Vec<Vec2>,
+    pub hw: Vec<f32>,
+}
+
+/// The screen-space primitives of one view.
+#[derive(Debug, Clone, Default)]
+pub struct Screen {
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) pos: Vec<Vec2>,
+    pub(crate) depth: Vec<f32>,
+    pub(crate) hw: Vec<f32>,
+    pub(crate) valid: Vec<bool>,
+    pub(crate) segs: Vec<[u32; 2]>,
+    pub(crate) prims: Vec<Prim>,
+    pub(crate) settings: RasterSettings,
+    /// `f_y`, for the depth-dependent world width.
+    pub(crate) fy: f32,
+}
+
+/// The segments of a strand set: consecutive points of each strand, root first.
+pub fn strand_segments(strands: &StrandSet) -> Vec<[u32; 2]> {
+    let mut segs = Vec::with_capacity(strands.num_points().saturating_sub(strands.num_strands()));
+    for w in strands.offsets().windows(2) {
+        for i in w[0]..w[1] - 1 {
+            segs.push([i as u32, i as u32 + 1]);
+        }
+    }
+    segs
+}
+
+fn check_segments(segs: &[[u32; 2]], count: usize) -> Result<(), RasterError> {
+    for (i, s) in segs.iter().enumerate() {
+        for &v in s {
+            if v as usize >= count {
+                return Err(RasterError::BadSegment { segment: i, vertex: v, count });
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_width(w: Width) -> Result<f32, RasterError> {
+    let v = match w {
+        Width::Pixels(v) | Width::World(v) => v,
+    };
+    if !(v.is_finite() && v > 0.0) {
+        return Err(RasterError::BadWidth(v));
+    }
+    Ok(v)
+}
+
+impl Screen {
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    pub fn prims(&self) -> &[Prim] {
+        &self.prims
+    }
+    pub fn segments(&self) -> &[[u32; 2]] {
+        &self.segs
+    }
+    /// Pixel positions of the vertices.
+    pub fn positions(&self) -> &[Vec2] {
+        &self.pos
+    }
+    pub fn settings(&self) -> &RasterSettings {
+        &self.settings
+    }
+
+    /// Screen geometry straight from pixel positions (depth 1 everywhere unless given), for 2D work
+    /// such as the toy of supplement 3.1. `settings.width` must be [`Width::Pixels`].
+    pub fn from_pixels(
+        width: u32,
+        height: u32,
+        pos: &[Vec2],
+        depth: Option<&[f32]>,
+        segs: &[[u32; 2]],
+        settings: RasterSettings,
+    ) -> Result<Self, RasterError> {
+        let mut s = Screen::default();
+        s.set_pixels(width, height, pos, depth, segs, settings)?;
+        Ok(s)
+    }
+
+    /// Like [`Screen::from_pixels`], reusing this screen's allocations.
+    pub fn set_pixels(
+        &mut self,
+        width: u32,
+        height: u32,
+        pos: &[Vec2],
+        depth: Option<&[f32]>,
+        segs: &[[u32; 2]],
+        settings: RasterSettings,
+    ) -> Result<(), RasterError> {
+        let w = check_width(settings.width)?;
+        check_segments(segs, pos.len())?;
+        if let Some(i) = pos.iter().position(|p| !p.is_finite()) {
+            return Err(RasterError::NotFinite { index: i, value: [pos[i].x, pos[i].y, 0.0] });
+        }
+        self.width = width;
+        self.height = height;
+        self.settings = settings;
+        self.fy = 1.0;
+        self.pos.clear();
+        self.pos.extend_from_slice(pos);
+        self.depth.clear();
+        match depth {
+            Some(d) => self.depth.extend(d.iter().copied().take(pos.len())),
+            None => self.depth.resize(pos.len(), 1.0),
+        }
+        self.depth.resize(pos.len(), 1.0);
+        self.hw.clear();
+        self.hw.resize(pos.len(), 0.5 * w);
+        self.valid.clear();
+        self.valid.resize(pos.len(), true);
+        self.segs.clear();
+        self.segs.extend_from_slice(segs);
+        self.build_prims(None);
+        Ok(())
+    }
+
+    /// Projects 3D points with a camera and builds the primitives of the given segments.
+    pub fn project(
+        camera: &Camera,
+        points: &[Vec3],
+        segs: &[[u32; 2]],
+        settings: RasterSettings,
+    ) -> Result<Self, RasterError> {
+        let mut s = Screen::default();
+        s.set_projected(camera, points, segs, settings)?;
+        Ok(s)
+    }
+
+    /// Like [`Screen::project`], reusing this screen's allocations.
+    pub fn set_projected(
+        &mut self,
+        camera: &Camera,
+        points: &[Vec3],
+        segs: &[[u32; 2]],
+        settings: RasterSettings,
+    ) -> Result<(), RasterError> {
+        use rayon::prelude::*;
+        let w = check_width(settings.width)?;
+        check_segments(segs, points.len())?;
+        if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+            return Err(RasterError::NotFinite { index: i, value: points[i].to_array() });
+        }
+        self.width = camera.width();
+        self.height = camera.height();
+        self.settings = settings;
+        self.fy = camera.k().col(1).y;
+        let n = points.len();
+        self.pos.resize(n, Vec2::ZERO);
+        self.depth.resize(n, 0.0);
+        self.hw.resize(n, 0.0);
+        self.valid.resize(n, false);
+        let fy = self.fy;
+        let hw_of = |z: f32| match settings.width {
+            Width::Pixels(_) => 0.5 * w,
+            Width::World(_) => 0.5 * w * fy / z,
+        };
+        self.pos
+            .par_iter_mut()
+            .zip(self.depth.par_iter_mut())
+            .zip(self.hw.par_iter_mut())
+            .zip(self.valid.par_iter_mut())
+            .zip(points.par_iter())
+            .for_each(|((((p, d), h), v), x)| {
+                let pc = camera.to_camera(*x);
+                if pc.z > 1e-6 {
+                    *p = camera.camera_to_pixel(pc);
+                    *d = pc.z;
+                    *h = hw_of(pc.z);
+                    *v = true;
+                } else {
+                    *v = false;
+                }
+            });
+        self.segs.clear();
+        self.segs.extend_from_slice(segs);
+        self.build_prims(if settings.direction_3d { Some(points) } else { None });
+        Ok(())
+    }
+
+    fn build_prims(&mut self, points: Option<&[Vec3]>) {
+        use rayon::prelude::*;
+        let shape = self.settings.shape;
+        let (pos, depth, hw, valid) = (&self.pos, &self.depth, &self.hw, &self.valid);
+        self.prims.resize(self.segs.len(), Prim::default());
+        self.prims.par_iter_mut().zip(self.segs.par_iter()).with_min_len(1024).for_each(|(p, s)| {
+            let (ia, ib) = (s[0] as usize, s[1] as usize);
+            if !(valid[ia] && valid[ib]) {
+                *p = Prim::default();
+                return;
+            }
+            let hw1 = match shape {
+                SegmentShape::Quad => hw[ib],
+                SegmentShape::Triangle => 0.0,
+            };
+            *p = Prim::build(pos[ia], pos[ib], hw[ia], hw1, depth[ia], depth[ib]);
+            if let Some(x) = points {
+                p.dir3 = (x[ib] - x[ia]).normalize_or_zero();
+            }
+        });
+    }
+
+    /// Maps per-segment gradients (corners, screen direction) to per-vertex pixel and half-width
+    /// gradients. `out` is overwritten.
+    pub fn backward_vertices(&self, g: &SegmentGrads, out: &mut VertexGrads) {
+        out.pos.clear();
+        out.pos.resize(self.pos.len(), Vec2::ZERO);
+        out.hw.clear();
+        out.hw.resize(self.pos.len(), 0.0);
+        let tri = self.settings.shape == SegmentShape::Triangle;
+        for (i, (p, s)) in self.prims.iter().zip(&self.segs).enumerate() {
+            if !p.valid {
+                continue;
+            }
+            let gc = g.corners.get(i).copied().unwrap_or([Vec2::ZERO; 4]);
+            let gdir = g.dir.get(i).copied().unwrap_or(Vec2::ZERO);
+            let mut ga = gc[0] + gc[3];
+            let mut gb = gc[1] + gc[2];
+            let g03 = gc[0] - gc[3];
+            let g12 = gc[1] - gc[2];
+            let gn = g03 * p.hw0 + g12 * p.hw1;
+            // n = perp(u) = P u with P = [[0, −1], [1, 0]]: ∂L/∂u = Pᵀ ∂L/∂n.
+            let gu = Vec2::new(gn.y, -gn.x);
+            let gd = (gu - p.u * p.u.dot(gu)) / p.len + gdir;
+            ga -= gd;
+            gb += gd;
+            let (ia, ib) = (s[0] as usize, s[1] as usize);
+            out.pos[ia] += ga;
+            out.pos[ib] += gb;
+            out.hw[ia] += p.n.dot(g03);
+            if !tri {
+                out.hw[ib] += p.n.dot(g12);
+            }
+        }
+    }
+
+    /// Maps per-vertex screen gradients to 3D: `∂L/∂X = Jᵀ ∂L/∂pixel + ∂L/∂hw · ∂hw/∂X` (the second
+    /// term only for [`Width::World`]). Adds into `out` (one entry per point).
+    pub fn backward_world(&self, camera: &Camera, points: &[Vec3], g: &VertexGrads, out: &mut [Vec3]) {
+        use rayon::prelude::*;
+        let world = matches!(self.settings.width, Width::World(_));
+        let rz = camera.r().row(2);
+        out.par_iter_mut().enumerate().with_min_len(4096).for_each(|(i, o)| {
+            if !self.valid[i] {
+                return;
+            }
+            let (gp, gh) = (g.pos[i], g.hw[i]);
+            if gp == Vec2::ZERO && gh == 0.0 {
+                return;
+            }
+            let pc = camera.to_camera(points[i]);
+            let j = camera.camera_jacobian(pc);
+            let mut v = j[0] * gp.x + j[1] * gp.y;
+            if world {
+                v += rz * (-gh * self.hw[i] / pc.z);
+            }
+            *o += v;
+        });
+    }
+}
+
+/// Distance from `q` to the line through `e0`, `e1`, and its gradient with respect to `e0` and `e1`.
+#[inline]
+pub(crate) fn line_distance(q: Vec2, e0: Vec2, e1: Vec2) -> (f32, Vec2, Vec2) {
+    let d = e1 - e0;
+    let v = q - e0;
+    let l = d.length();
+    let cr = d.x * v.y - d.y * v.x;
+    let sg = if cr >= 0.0 { 1.0 } else { -1.0 };
+    let r = cr.abs() / l;
+    // ∂cr/∂v = (−d.y, d.x); ∂cr/∂d = (v.y, −v.x); ∂l/∂d = d / l.
+    let dr_dv = Vec2::new(-d.y, d.x) * (sg / l);
+    let dr_dd = Vec2::new(v.y, -v.x) * (sg / l) - d * (r / (l * l));
+    (r, -dr_dd - dr_dv, dr_dd)
+}
+
+/// Where the segment `p0 → p1` crosses the segment `e0 → e1`: the parameter along `p0 → p1`.
+#[inline]
+pub(crate) fn crossing(p0: Vec2, p1: Vec2, e0: Vec2, e1: Vec2) -> Option<f32> {
+    let r = p1 - p0;
+    let s = e1 - e0;
+    let den = r.perp_dot(s);
+    if den.abs() < 1e-12 {
+        return None;
+    }
+    let w = e0 - p0;
+    let t = w.perp_dot(s) / den;
+    let u = w.perp_dot(r) / den;
+    if (0.0..=1.0).contains(&t) && (0.0..=1.0).contains(&u) {
+        Some(t)
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_distance_gradient_matches_finite_differences() {
+        let q = Vec2::new(0.3, 0.7);
+        let e0 = Vec2::new(-0.4, 0.1);
+        let e1 = Vec2::new(1.2, -0.3);
+        let (_, g0, g1) = line_distance(q, e0, e1);
+        let h = 1e-3;
+        for k in 0..2 {
+            let mut dx = Vec2::ZERO;
+            dx[k] = h;
+            let f0 = (line_distance(q, e0 + dx, e1).0 - line_distance(q, e0 - dx, e1).0) / (2.0 * h);
+            let f1 = (line_distance(q, e0, e1 + dx).0 - line_distance(q, e0, e1 - dx).0) / (2.0 * h);
+            assert!((f0 - g0[k]).abs() < 1e-3, "{f0} {g0:?}");
+            assert!((f1 - g1[k]).abs() < 1e-3, "{f1} {g1:?}");
+        }
+    }
+
+    #[test]
+    fn crossing_finds_the_parameter() {
+        let t = crossing(Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(0.25, -1.0), Vec2::new(0.25, 1.0));
+        assert!((t.unwrap() - 0.25).abs() < 1e-6);
+        assert!(crossing(Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(2.0, -1.0), Vec2::new(2.0, 1.0)).is_none());
+    }
+}
