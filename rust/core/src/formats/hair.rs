@@ -229,7 +229,16 @@ pub fn read_hair_bytes_with(bytes: &[u8], options: StrandReadOptions) -> Result<
 /// Writes a `.hair` file into memory. Fails if a strand has more than 65,536 points (the segments
 /// array holds `u16`) or if a per-point array does not have one entry per point.
 pub fn write_hair_bytes(hair: &HairFile) -> Result<Vec<u8>> {
-    let s = &hair.strands;
+    encode(&hair.strands, Some(hair))
+}
+
+/// Writes strands alone as a `.hair` file into memory (no per-point arrays, default header values).
+pub fn write_hair_strands_bytes(strands: &StrandSet) -> Result<Vec<u8>> {
+    encode(strands, None)
+}
+
+/// Encodes `s` with the per-point arrays and header values of `meta` (whose strands are ignored).
+fn encode(s: &StrandSet, meta: Option<&HairFile>) -> Result<Vec<u8>> {
     let n = s.num_points();
     if let Some(i) = s.counts().iter().position(|&k| k > u16::MAX as u32 + 1) {
         return Err(FormatErrorKind::Invalid(format!(
@@ -243,6 +252,14 @@ pub fn write_hair_bytes(hair: &HairFile) -> Result<Vec<u8>> {
             FormatErrorKind::Invalid("too many strands or points for a .hair file (2^32 - 1 at most)".into()).into()
         );
     }
+    let defaults;
+    let hair = match meta {
+        Some(h) => h,
+        None => {
+            defaults = HairFile::from(StrandSet::empty());
+            &defaults
+        }
+    };
     for (what, len) in [
         ("thickness", hair.thickness.as_ref().map(Vec::len)),
         ("transparency", hair.transparency.as_ref().map(Vec::len)),
@@ -275,7 +292,7 @@ pub fn write_hair_bytes(hair: &HairFile) -> Result<Vec<u8>> {
     for &k in s.counts() {
         out.extend_from_slice(&((k - 1) as u16).to_le_bytes());
     }
-    for v in s.flat_points() {
+    for v in s.points().iter().flat_map(|p| p.to_array()) {
         out.extend_from_slice(&v.to_le_bytes());
     }
     let arrays = [hair.thickness.as_deref(), hair.transparency.as_deref()];

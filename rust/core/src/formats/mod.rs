@@ -30,7 +30,9 @@ use thiserror::Error;
 use crate::mesh::{MeshError, TriMesh};
 use crate::strands::{StrandError, StrandSet};
 
-pub use hair::{read_hair, read_hair_bytes, read_hair_bytes_with, write_hair, write_hair_bytes, HairFile};
+pub use hair::{
+    read_hair, read_hair_bytes, read_hair_bytes_with, write_hair, write_hair_bytes, write_hair_strands_bytes, HairFile,
+};
 pub use obj::{read_obj_bytes, write_obj_bytes};
 pub use obj_lines::{read_obj_lines_bytes, write_obj_lines_bytes};
 pub use ply::{read_ply_mesh_bytes, write_ply_mesh_bytes};
@@ -212,7 +214,7 @@ pub fn read_strands_with(path: impl AsRef<Path>, options: StrandReadOptions) -> 
 pub fn write_strands(path: impl AsRef<Path>, strands: &StrandSet) -> Result<()> {
     let path = path.as_ref();
     let writer: fn(&StrandSet) -> Result<Vec<u8>> = match extension(path).as_str() {
-        "hair" => |s| hair::write_hair_bytes(&HairFile::from(s.clone())),
+        "hair" => hair::write_hair_strands_bytes,
         "data" => |s| Ok(usc::write_usc_bytes(s)),
         "ply" => |s| Ok(ply_strands::write_ply_strands_bytes(s)),
         "obj" => |s| Ok(obj_lines::write_obj_lines_bytes(s)),
