@@ -285,8 +285,14 @@ pub fn reconstruct(
     progress.update("orient3d", 0.0, "loading the raw mesh");
     let raw = Bvh::new(read_mesh(&capture.raw_mesh)?);
     progress.check()?;
-    let views: Vec<MvsView> =
-        capture.views.iter().zip(&maps).map(|(v, m)| MvsView { camera: &v.camera, map: m }).collect();
+    let images: Vec<GrayImage> = capture.views.iter().map(|v| GrayImage::load(&v.image)).collect::<Result<_, _>>()?;
+    let views: Vec<MvsView> = capture
+        .views
+        .iter()
+        .zip(&maps)
+        .zip(&images)
+        .map(|((v, m), img)| MvsView { camera: &v.camera, map: m, image: Some(img) })
+        .collect();
     let points = estimate(&views, &raw, &opts.mvs, progress)?;
     points.save_ply(&out_dir.join("points3d.ply"))?;
     times.push(("orient3d".into(), t.elapsed().as_secs_f64()));

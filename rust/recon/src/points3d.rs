@@ -8,10 +8,13 @@
 //! 2019) in its cost, with the raw mesh as the depth prior (`docs/method.md` §2). What is built:
 //! - every `stride`-th hair pixel of every view is a reference pixel; its ray is cast on the raw
 //!   mesh for the prior depth t₀; pixels that miss the mesh are skipped;
-//! - the hypotheses are 3D lines through the ray at depths t₀ + `depth_offsets` whose projection
-//!   into the reference view follows the pixel's 2D orientation exactly (LPMVS's constraint: the
-//!   direction lies in the plane spanned by the ray and the image direction), with the in-plane
-//!   angle φ sampled over `angle_steps` values then refined;
+//! - the hypotheses are 3D lines through the ray whose projection into the reference view follows
+//!   the pixel's 2D orientation exactly (LPMVS's constraint: the direction lies in the plane spanned
+//!   by the ray and the image direction); the in-plane angle φ is first chosen at the prior depth
+//!   over `angle_steps` samples, then the depth among t₀ + `depth_offsets` by the photometric
+//!   agreement (1 − NCC, mean over the visible neighbours) of a 5×3 patch laid in the plane of the
+//!   line (across × along, one pixel apart), with a weak quadratic pull towards t₀, then φ is
+//!   refined at that depth;
 //! - the cost of a hypothesis is the confidence-weighted mean of sin² of the angle between the
 //!   line's projection and the 2D orientation in the `neighbours` nearest views where the prior
 //!   point is visible (a ray cast on the raw mesh); a view where the point falls outside the hair
@@ -21,7 +24,8 @@
 //!
 //! Not built (yet): PatchMatch's random search and propagation between neighbouring pixels, and
 //! LPMVS's final cross-view point filtering; the exhaustive search over the small hypothesis set
-//! replaces the first.
+//! replaces the first. The orientation cost alone barely depends on depth, hence the photometric
+//! term for the depth.
 
 use std::io::{BufRead, Read, Write};
 use std::path::Path;
@@ -31,7 +35,7 @@ use hairrecon_core::{Bvh, Camera};
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::orient2d::OrientationMap;
+use crate::orient2d::{GrayImage, OrientationMap};
 use crate::progress::{Cancelled, Progress};
 
 /// Why points could not be saved or loaded.
@@ -136,8 +140,10 @@ pub struct LineMvsParams {
     pub neighbours: usize,
     /// Most angle (degrees) between the reference and a neighbour's viewing direction at the head.
     pub max_view_angle_deg: f32,
-    /// Depth offsets (metres, along the ray) around the raw mesh's depth.
+    /// Depth offsets (metres, along the ray) around the raw mesh's depth, searched photometrically.
     pub depth_offsets: Vec<f32>,
+    /// Weight of a quadratic pull towards the raw mesh's depth (per 5 mm) in the depth search.
+    pub depth_prior: f32,
     /// Samples of the in-plane angle over [0, π).
     pub angle_steps: usize,
     /// Reference pixels with a 2D confidence below this are skipped.
@@ -157,7 +163,8 @@ impl Default for LineMvsParams {
             stride: 2,
             neighbours: 8,
             max_view_angle_deg: 70.0,
-            depth_offsets: vec![-0.004, -0.003, -0.002, -0.001, 0.0, 0.001],
+            depth_offsets: (-2..=12).map(|k| k as f32 * 0.0005).collect(),
+            depth_prior: 0.05,
             angle_steps: 36,
             min_confidence: 0.05,
             max_cost: 0.06,
@@ -173,6 +180,66 @@ impl Default for LineMvsParams {
 pub struct MvsView<'a> {
     pub camera: &'a Camera,
     pub map: &'a OrientationMap,
+    /// The view's image, for the photometric depth search (skipped when `None`).
+    pub image: Option<&'a GrayImage>,
+}
+
+/// Samples of the photometric patch: 5 across the line × 3 along it.
+const PATCH: usize = 15;
+
+/// Bilinear sample; `None` outside the image.
+#[inline]
+fn bilinear(img: &GrayImage, x: f32, y: f32) -> Option<f32> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    if !(x >= 0.0 && y >= 0.0 && x < (w - 1) as f32 && y < (h - 1) as f32) {
+        return None;
+    }
+    let (xi, yi) = (x as usize, y as usize);
+    let (fx, fy) = (x - xi as f32, y - yi as f32);
+    let i = yi * w + xi;
+    let top = img.data[i] * (1.0 - fx) + img.data[i + 1] * fx;
+    let bot = img.data[i + w] * (1.0 - fx) + img.data[i + w + 1] * fx;
+    Some(top * (1.0 - fy) + bot * fy)
+}
+
+/// The patch around `p` in the plane of `across` and `along`, `fp` metres apart, seen by `cam`.
+#[inline]
+fn patch(img: &GrayImage, cam: &Camera, p: Vec3, across: Vec3, along: Vec3, fp: f32, out: &mut [f32; PATCH]) -> bool {
+    let mut k = 0;
+    for j in -1..=1 {
+        for i in -2..=2 {
+            let q = p + across * (i as f32 * fp) + along * (1.5 * j as f32 * fp);
+            let pc = cam.to_camera(q);
+            if pc.z <= 1e-6 {
+                return false;
+            }
+            let px = cam.camera_to_pixel(pc);
+            match bilinear(img, px.x, px.y) {
+                Some(v) => out[k] = v,
+                None => return false,
+            }
+            k += 1;
+        }
+    }
+    true
+}
+
+/// Normalised cross-correlation of two patches; 0 when either is flat.
+#[inline]
+fn ncc(a: &[f32; PATCH], b: &[f32; PATCH]) -> f32 {
+    let n = PATCH as f32;
+    let (ma, mb) = (a.iter().sum::<f32>() / n, b.iter().sum::<f32>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0f32, 0.0f32, 0.0f32);
+    for k in 0..PATCH {
+        let (x, y) = (a[k] - ma, b[k] - mb);
+        sab += x * y;
+        saa += x * x;
+        sbb += y * y;
+    }
+    if saa < 1e-8 || sbb < 1e-8 {
+        return 0.0;
+    }
+    sab / (saa * sbb).sqrt()
 }
 
 /// Neighbour views of each view: nearest viewing directions towards `centre`.
@@ -302,29 +369,60 @@ pub fn estimate(
                     }
                     (if wsum > 0.0 { sum / wsum } else { 1.0 }, p, d)
                 };
-                let mut best = (f32::INFINITY, 0.0f32, 0.0f32);
-                for &dt in &params.depth_offsets {
-                    let t = hit.t + dt;
-                    for k in 0..steps {
-                        let phi = -std::f32::consts::FRAC_PI_2 + (k as f32 + 0.5) * std::f32::consts::PI / steps as f32;
-                        let (c, _, _) = cost(t, phi);
-                        if c < best.0 {
-                            best = (c, t, phi);
-                        }
+                // 1. The direction at the prior depth (the orientation cost barely depends on depth).
+                let mut best = (f32::INFINITY, hit.t, 0.0f32);
+                for k in 0..steps {
+                    let phi = -std::f32::consts::FRAC_PI_2 + (k as f32 + 0.5) * std::f32::consts::PI / steps as f32;
+                    let (c, _, _) = cost(hit.t, phi);
+                    if c < best.0 {
+                        best = (c, hit.t, phi);
                     }
                 }
-                // Local refinement of φ and depth.
+                // 2. The depth: photometric agreement of a small patch in the plane of the line.
+                let phi = best.2;
+                let d = e1 * phi.cos() + ray * phi.sin();
+                let across = d.cross(ray).normalize_or_zero();
+                let fp = hit.t / cam.k().col(0).x;
+                if let Some(ref_img) = view.image {
+                    let mut best_photo = f32::INFINITY;
+                    let mut best_t = hit.t;
+                    let mut ref_patch = [0.0f32; PATCH];
+                    let mut other = [0.0f32; PATCH];
+                    for &dt in &params.depth_offsets {
+                        let t = hit.t + dt;
+                        let p = o + ray * t;
+                        if !patch(ref_img, cam, p, across, d, fp, &mut ref_patch) {
+                            continue;
+                        }
+                        let (mut sum, mut cnt) = (0.0f32, 0usize);
+                        for &j in vis {
+                            let Some(img) = views[j].image else { continue };
+                            if patch(img, views[j].camera, p, across, d, fp, &mut other) {
+                                sum += 1.0 - ncc(&ref_patch, &other);
+                                cnt += 1;
+                            }
+                        }
+                        if cnt == 0 {
+                            continue;
+                        }
+                        let photo = sum / cnt as f32 + params.depth_prior * (dt / 0.005).powi(2);
+                        if photo < best_photo {
+                            best_photo = photo;
+                            best_t = t;
+                        }
+                    }
+                    best = (cost(best_t, phi).0, best_t, phi);
+                }
+                // 3. Local refinement of φ.
                 let mut dphi = 0.5 * std::f32::consts::PI / steps as f32;
-                let mut ddt = 0.0005f32;
-                for _ in 0..3 {
-                    for (a, b) in [(dphi, 0.0), (-dphi, 0.0), (0.0, ddt), (0.0, -ddt)] {
-                        let (c, _, _) = cost(best.1 + b, best.2 + a);
+                for _ in 0..4 {
+                    for a in [dphi, -dphi] {
+                        let (c, _, _) = cost(best.1, best.2 + a);
                         if c < best.0 {
-                            best = (c, best.1 + b, best.2 + a);
+                            best = (c, best.1, best.2 + a);
                         }
                     }
                     dphi *= 0.5;
-                    ddt *= 0.5;
                 }
                 if best.0 > params.max_cost {
                     return None;
