@@ -200,7 +200,10 @@ pub fn read_hair_bytes_with(bytes: &[u8], options: StrandReadOptions) -> Result<
             }
             .into());
         }
-        let keep: Vec<bool> = counts.iter().flat_map(|&k| std::iter::repeat(k >= 2).take(k as usize)).collect();
+        let mut keep = Vec::with_capacity(np);
+        for &k in &counts {
+            keep.resize(keep.len() + k as usize, k >= 2);
+        }
         let filter =
             |v: Vec<f32>| -> Vec<f32> { v.into_iter().zip(&keep).filter(|(_, &k)| k).map(|(x, _)| x).collect() };
         points = points.into_iter().zip(&keep).filter(|(_, &k)| k).map(|(p, _)| p).collect();

@@ -382,7 +382,8 @@ fn read_body(
             el.properties.len() as u64 * 2 - 1
         };
         let available = src.remaining() as u64 + if binary { 0 } else { 1 };
-        if el.count.checked_mul(min_row).map_or(true, |t| t > available) {
+        let fits = matches!(el.count.checked_mul(min_row), Some(t) if t <= available);
+        if !fits {
             return Err(FormatErrorKind::CountTooLarge {
                 what: "PLY element rows",
                 count: el.count,
