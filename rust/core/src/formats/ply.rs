@@ -410,13 +410,15 @@ fn read_body(
                 (p.name.clone(), col)
             })
             .collect();
-        let what_of = |p: &PropertyDef| format!("property {:?} of element {:?}", p.name, el.name);
+        // Descriptions for error messages, built once per element rather than per value.
+        let whats: Vec<String> =
+            el.properties.iter().map(|p| format!("property {:?} of element {:?}", p.name, el.name)).collect();
         for _ in 0..n {
             let mut ci = 0;
-            for (p, &k) in el.properties.iter().zip(&kept) {
+            for ((p, &k), what) in el.properties.iter().zip(&kept).zip(&whats) {
                 match p.kind {
                     PropertyKind::Scalar(t) => {
-                        let v = src.value(t, &what_of(p))?;
+                        let v = src.value(t, what)?;
                         if k {
                             if let Column::Scalar(vals) = &mut columns[ci].1 {
                                 vals.push(v);
@@ -424,11 +426,9 @@ fn read_body(
                         }
                     }
                     PropertyKind::List { count, item } => {
-                        let c = src.value(count, &what_of(p))?;
+                        let c = src.value(count, what)?;
                         if c < 0.0 {
-                            return Err(
-                                FormatErrorKind::Invalid(format!("{}: negative list length {c}", what_of(p))).into()
-                            );
+                            return Err(FormatErrorKind::Invalid(format!("{what}: negative list length {c}")).into());
                         }
                         let c = c as u64;
                         // Each item needs its bytes (binary) or a token (ASCII): check before looping.
@@ -443,7 +443,7 @@ fn read_body(
                             .into());
                         }
                         for _ in 0..c {
-                            let v = src.value(item, &what_of(p))?;
+                            let v = src.value(item, what)?;
                             if k {
                                 if let Column::List { values, .. } = &mut columns[ci].1 {
                                     values.push(v);
