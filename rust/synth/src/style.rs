@@ -1,0 +1,209 @@
+//! Hairstyle presets: the numbers that shape each style of [`crate::generate`].
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::error::SynthError;
+
+/// The hairstyles that the generator knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Style {
+    /// Long straight hair past the shoulders, middle parting.
+    Straight,
+    /// Long hair in loose S-waves.
+    Wavy,
+    /// Tight helical curls in ringlets, shoulder length: the hard case.
+    Curly,
+    /// A short cut, combed back, a few centimetres long.
+    Short,
+    /// A chin-length bob with the ends turned under.
+    Bob,
+}
+
+impl Style {
+    pub const ALL: [Style; 5] = [Style::Straight, Style::Wavy, Style::Curly, Style::Short, Style::Bob];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Style::Straight => "straight",
+            Style::Wavy => "wavy",
+            Style::Curly => "curly",
+            Style::Short => "short",
+            Style::Bob => "bob",
+        }
+    }
+
+    /// The preset of this style.
+    pub fn params(self) -> StyleParams {
+        let base = StyleParams {
+            length: 0.45,
+            length_jitter: 0.12,
+            stiff_len: 0.008,
+            bend_root: 0.02,
+            bend_free: 0.02,
+            gravity: 1.0,
+            back: 0.25,
+            part: 1.5,
+            tip_under: 0.0,
+            curl_radius: [0.0, 0.0],
+            curl_period: 0.05,
+            curl_ramp: 0.05,
+            clump_size: 40.0,
+            clump_strength: 0.35,
+            frizz: 0.03,
+            offset: 0.0015,
+            volume: 0.010,
+        };
+        match self {
+            Style::Straight => base,
+            Style::Wavy => StyleParams {
+                length: 0.40,
+                part: 2.0,
+                curl_radius: [0.014, 0.004],
+                curl_period: 0.09,
+                curl_ramp: 0.08,
+                clump_strength: 0.6,
+                frizz: 0.02,
+                volume: 0.014,
+                ..base
+            },
+            Style::Curly => StyleParams {
+                length: 0.17,
+                length_jitter: 0.15,
+                bend_free: 0.025,
+                back: 0.6,
+                part: 2.5,
+                curl_radius: [0.0065, 0.0065],
+                curl_period: 0.022,
+                curl_ramp: 0.015,
+                clump_size: 60.0,
+                clump_strength: 0.75,
+                frizz: 0.04,
+                volume: 0.025,
+                ..base
+            },
+            Style::Short => StyleParams {
+                length: 0.07,
+                length_jitter: 0.2,
+                stiff_len: 0.004,
+                bend_root: 0.015,
+                bend_free: 0.012,
+                gravity: 0.6,
+                back: 1.0,
+                part: 1.5,
+                clump_size: 30.0,
+                clump_strength: 0.25,
+                frizz: 0.03,
+                volume: 0.004,
+                ..base
+            },
+            Style::Bob => StyleParams {
+                length: 0.17,
+                length_jitter: 0.08,
+                bend_free: 0.02,
+                back: 0.1,
+                part: 1.5,
+                tip_under: 2.0,
+                clump_strength: 0.3,
+                volume: 0.012,
+                ..base
+            },
+        }
+    }
+}
+
+impl fmt::Display for Style {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Style {
+    type Err = SynthError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Style::ALL.into_iter().find(|st| st.name().eq_ignore_ascii_case(s)).ok_or_else(|| {
+            SynthError::Param(format!("unknown style {s:?}; use one of straight, wavy, curly, short, bob"))
+        })
+    }
+}
+
+/// The numbers of a style. Lengths are metres; weights are relative.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StyleParams {
+    /// Mean length of a strand's centreline (the strand itself is longer when it curls).
+    pub length: f32,
+    /// Relative spread of lengths between clumps (uniform in ±).
+    pub length_jitter: f32,
+    /// Arc length over which the root is stiff.
+    pub stiff_len: f32,
+    /// Bending length at the root: the strand turns toward its target direction over this length.
+    pub bend_root: f32,
+    /// Bending length past the stiff part.
+    pub bend_free: f32,
+    /// Weight of "down" in the target direction.
+    pub gravity: f32,
+    /// Weight of "toward the back of the head" (+Y).
+    pub back: f32,
+    /// Weight of "away from the middle parting" for roots at the front.
+    pub part: f32,
+    /// Weight of "toward the neck" near the tips (a bob's ends turned under).
+    pub tip_under: f32,
+    /// Curl radii along the two axes of the strand's frame (equal: round helix; unequal: waves).
+    pub curl_radius: [f32; 2],
+    /// Length of centreline per curl turn.
+    pub curl_period: f32,
+    /// Arc length from the root over which curls grow to full radius.
+    pub curl_ramp: f32,
+    /// Mean number of strands per clump.
+    pub clump_size: f32,
+    /// How far the tips are pulled to their clump's guide (0: not at all, 1: onto it).
+    pub clump_strength: f32,
+    /// Random turning per step.
+    pub frizz: f32,
+    /// Least distance kept from the head.
+    pub offset: f32,
+    /// Largest extra distance from the head for strands that have travelled far over it (layers).
+    pub volume: f32,
+}
+
+impl StyleParams {
+    /// Checks that every number is finite and in range.
+    pub fn validate(&self) -> Result<(), SynthError> {
+        let positive = [
+            ("length", self.length),
+            ("stiff_len", self.stiff_len),
+            ("bend_root", self.bend_root),
+            ("bend_free", self.bend_free),
+            ("curl_period", self.curl_period),
+            ("curl_ramp", self.curl_ramp),
+            ("clump_size", self.clump_size),
+            ("offset", self.offset),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(SynthError::Param(format!("{name} must be positive and finite, got {v}")));
+            }
+        }
+        let others = [
+            ("length_jitter", self.length_jitter),
+            ("gravity", self.gravity),
+            ("back", self.back),
+            ("part", self.part),
+            ("tip_under", self.tip_under),
+            ("curl_radius", self.curl_radius[0]),
+            ("curl_radius", self.curl_radius[1]),
+            ("clump_strength", self.clump_strength),
+            ("frizz", self.frizz),
+            ("volume", self.volume),
+        ];
+        for (name, v) in others {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(SynthError::Param(format!("{name} must be zero or positive and finite, got {v}")));
+            }
+        }
+        if self.length_jitter >= 1.0 || self.clump_strength > 1.0 {
+            return Err(SynthError::Param("length_jitter must be below 1 and clump_strength at most 1".into()));
+        }
+        Ok(())
+    }
+}
