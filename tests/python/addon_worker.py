@@ -154,6 +154,15 @@ def install(zip_path: str) -> dict:
                 "has_operator": hasattr(bpy.types, "HAIRRECON_OT_reconstruct"), "addon_module": []}
     res = bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
     enabled = sorted(m for m in bpy.context.preferences.addons.keys())
+    # Blender appends the extensions' wheel folder to sys.path; in this venv a developer's
+    # `maturin develop` copy of hairrecon would come first and hide the bundled wheel, which is the
+    # one under test (a real Blender has no such copy). Put the wheel folder first.
+    wheel_dir = str(Path(bpy.utils.user_resource("EXTENSIONS")) / ".local" / "lib"
+                    / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages")
+    if wheel_dir in sys.path:
+        sys.path.remove(wheel_dir)
+        sys.path.insert(0, wheel_dir)
+    sys.modules.pop("hairrecon", None)
     import hairrecon  # the Rust module, from the extension's wheel
 
     return {
