@@ -207,7 +207,11 @@ def render_picture(bpy, a, hair):
     r.film_transparent = False
     if scene.world is None:
         scene.world = bpy.data.worlds.new("World")
-    scene.world.use_nodes = True
+    import warnings
+
+    with warnings.catch_warnings():  # World.use_nodes: needed up to 4.x, deprecated in 5.0
+        warnings.simplefilter("ignore", DeprecationWarning)
+        scene.world.use_nodes = True
     bg = scene.world.node_tree.nodes.get("Background")
     if bg is not None:
         bg.inputs["Color"].default_value = (0.45, 0.46, 0.5, 1.0)
