@@ -72,17 +72,27 @@ impl HeadCollider {
     /// point plus `offset` along the outward direction. Points more than `reach` inside the head are
     /// not found (the query stops at `max(offset, reach)` from `p`): give the largest depth that a
     /// step can reach. A few passes settle points in creases.
-    pub fn push_out(&self, mut p: Vec3, offset: f32, reach: f32) -> Vec3 {
+    pub fn push_out(&self, p: Vec3, offset: f32, reach: f32) -> Vec3 {
+        self.push_out_bound(p, offset, reach).0
+    }
+
+    /// [`Self::push_out`] that also returns a lower bound on the distance from the returned point
+    /// to the head (at least `offset` up to float error, `max(offset, reach)` when nothing is that
+    /// near; below the floor, the distance up to the floor). Since distance is 1-Lipschitz, a caller that moves the point
+    /// by less than `bound − offset` need not ask again.
+    pub fn push_out_bound(&self, mut p: Vec3, offset: f32, reach: f32) -> (Vec3, f32) {
+        let radius = offset.max(reach);
         for _ in 0..4 {
             if !self.active(p) {
-                return p;
+                // Not tested down here: what matters is how far the point is from being tested.
+                return (p, self.floor - p.z);
             }
-            let Some(cp) = self.bvh.closest_point(p, offset.max(reach)) else { return p };
+            let Some(cp) = self.bvh.closest_point(p, radius) else { return (p, radius) };
             let n = self.bvh.pseudo_normal(&cp).normalize_or_zero();
             let delta = p - cp.point;
             let outside = delta.dot(n) >= 0.0;
             if outside && cp.distance >= offset * 0.999 {
-                return p;
+                return (p, cp.distance);
             }
             let dir = if cp.distance > 1e-7 {
                 let d = delta / cp.distance;
@@ -96,7 +106,7 @@ impl HeadCollider {
             };
             p = cp.point + dir * offset;
         }
-        p
+        (p, 0.0)
     }
 }
 

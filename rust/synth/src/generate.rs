@@ -43,8 +43,8 @@ pub const DEFAULT_STRANDS: usize = 50_000;
 pub const DEFAULT_POINTS: usize = 100;
 /// Least distance from the head of every point but the root after the last pass, metres.
 pub const FINAL_OFFSET: f32 = 0.001;
-/// Deepest point that the last pass looks for inside the head, metres.
-pub const FINAL_REACH: f32 = 0.05;
+/// A query near the head also looks this many steps ahead, so that the next ones can skip it.
+const LOOKAHEAD: f32 = 3.0;
 /// Arc length over which the layering offset grows, metres.
 const LAYER_LENGTH: f32 = 0.08;
 /// The face guard of the bundled head (metres, its frame): in front of `y = FACE_GUARD_Y`, from
@@ -133,7 +133,7 @@ impl HairGenerator {
                 let length = prm.length * (1.0 + prm.length_jitter * rng.random_range(-1.0f32..1.0));
                 let phase = rng.random_range(0.0..std::f32::consts::TAU);
                 let turns = length / prm.curl_period;
-                let guide = self.strand(prm, &root, length, phase, turns, n, 0.6, &mut rng);
+                let (guide, _) = self.strand(prm, &root, length, phase, turns, n, 0.6, &mut rng);
                 Clump { root, length, phase, turns, guide }
             })
             .collect();
@@ -147,16 +147,23 @@ impl HairGenerator {
                 let length = c.length * (1.0 + 0.06 * rng.random_range(-1.0f32..1.0));
                 let phase = c.phase + 0.35 * rng.random_range(-1.0f32..1.0);
                 let layer = rng.random_range(0.3f32..1.0);
-                let mut pts = self.strand(prm, root, length, phase, c.turns, n, layer, &mut rng);
+                let (mut pts, bounds) = self.strand(prm, root, length, phase, c.turns, n, layer, &mut rng);
                 // Clumping: toward the guide, more toward the tip.
                 let strength = prm.clump_strength * rng.random_range(0.6f32..1.0);
                 let side = if root.position.x >= 0.0 { Vec3::X } else { Vec3::NEG_X };
                 for (k, p) in pts.iter_mut().enumerate().skip(1) {
                     let t = k as f32 / (n - 1) as f32;
                     let w = strength * smoothstep(t / 0.6) * (0.5 + 0.5 * t);
-                    *p = p.lerp(c.guide[k], w);
-                    *p = face_guard(*p, side).unwrap_or(*p);
-                    *p = self.collider.push_out(*p, FINAL_OFFSET, FINAL_REACH);
+                    let moved = p.lerp(c.guide[k], w);
+                    let moved = face_guard(moved, side).unwrap_or(moved);
+                    // The point was at least `offset` outside before this move: it can only have
+                    // gone as deep as the move is long.
+                    let step = moved.distance(*p);
+                    *p = if bounds[k] - step >= FINAL_OFFSET {
+                        moved
+                    } else {
+                        self.collider.push_out(moved, FINAL_OFFSET, step + FINAL_OFFSET)
+                    };
                 }
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 if d % 1024 == 0 || d == roots.len() {
@@ -169,7 +176,8 @@ impl HairGenerator {
         Ok(StrandSet::new(strands.concat(), counts)?)
     }
 
-    /// One strand: grown centreline plus curls, not yet clumped.
+    /// One strand: grown centreline plus curls, not yet clumped; with a lower bound on each
+    /// point's distance from the head.
     fn strand(
         &self,
         prm: &StyleParams,
@@ -180,10 +188,11 @@ impl HairGenerator {
         n: usize,
         layer: f32,
         rng: &mut Pcg64Mcg,
-    ) -> Vec<Vec3> {
+    ) -> (Vec<Vec3>, Vec<f32>) {
         let h = length / (n - 1) as f32;
         // A step from a point outside the head cannot end deeper inside than its length.
         let reach = 1.5 * h;
+        let mut bound = 0.0f32;
         let curl_max = prm.curl_radius[0].max(prm.curl_radius[1]);
         let side = if root.position.x >= 0.0 { Vec3::X } else { Vec3::NEG_X };
         let front = front_weight(root.position);
@@ -195,6 +204,9 @@ impl HairGenerator {
         }
         let mut c = Vec::with_capacity(n);
         c.push(root.position);
+        // Lower bounds on each point's distance from the head.
+        let mut bounds = Vec::with_capacity(n);
+        bounds.push(0.0);
         let mut p = root.position;
         for k in 1..n {
             let s = k as f32 * h;
@@ -219,20 +231,28 @@ impl HairGenerator {
                 + prm.volume * layer * (1.0 - (-s / LAYER_LENGTH).exp());
             let off = off_full.min(prm.offset + 0.5 * s);
             let mut q = p + h * d;
-            let pushed = self.collider.push_out(q, off, reach);
-            if pushed != q {
-                d = (pushed - p).normalize_or(d);
-                q = self.collider.push_out(p + h * d, off, reach);
+            // `bound` is a lower bound on the distance from the head (distance is 1-Lipschitz):
+            // ask the BVH only when a step may have come closer than `off`.
+            bound -= h;
+            if bound < off {
+                let (pushed, b) = self.collider.push_out_bound(q, off, reach.max(off + LOOKAHEAD * h));
+                bound = b;
+                if pushed != q {
+                    d = (pushed - p).normalize_or(d);
+                    (q, bound) = self.collider.push_out_bound(p + h * d, off, reach);
+                }
             }
             if let Some(g) = face_guard(q, side) {
                 d = (g - p).normalize_or(d);
                 q = g;
+                bound = 0.0;
             }
             c.push(q);
+            bounds.push(bound);
             p = q;
         }
         if curl_max <= 0.0 {
-            return c;
+            return (c, bounds);
         }
         // Curls: an ellipse swept around the centreline in a frame carried along it.
         let mut out = Vec::with_capacity(n);
@@ -251,8 +271,9 @@ impl HairGenerator {
             let r = smoothstep(k as f32 * h / prm.curl_ramp);
             let off = prm.curl_radius[0] * phi.cos() * e1 + prm.curl_radius[1] * phi.sin() * e2;
             out.push(c[k] + r * off);
+            bounds[k] -= r * off.length();
         }
-        out
+        (out, bounds)
     }
 }
 
