@@ -9,9 +9,9 @@
 //! match) and *undirected* (180°-tolerant, compares |cos|). Default thresholds: 1 mm/10°, 2 mm/20°,
 //! 3 mm/30°.
 //!
-//! Matching uses a kd-tree (kiddo's `ImmutableKdTree`) over each set, queried with growing radii
-//! (the smallest threshold first) so that a well-matched point costs one small query; points are
-//! processed in parallel with rayon.
+//! Matching uses a kd-tree (kiddo's `ImmutableKdTree`) over each set: one nearest-neighbour query
+//! settles most points, and a radius query is made only when the nearest point fails the angle test
+//! (see [`OrientedPoints::match_mask`]); points are processed in parallel with rayon.
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -105,41 +105,41 @@ impl OrientedPoints {
 
     /// For a query point and tangent, a bit mask: bit `i` is set when some point of this set
     /// matches under threshold `i` in directed mode, bit `MAX_THRESHOLDS + i` in undirected mode.
-    /// `thresholds` must be sorted by distance and hold at most [`MAX_THRESHOLDS`] entries.
+    /// `thresholds` must be sorted by distance and hold at most [`MAX_THRESHOLDS`] entries; `cos`
+    /// holds the cosines of their angles.
+    ///
+    /// Exact, and cheap in the common case: one nearest-neighbour query settles every threshold
+    /// closer than the nearest point (unmatched) and, when the nearest point passes the angle test,
+    /// every other one (matched). Only a threshold the nearest point fails on angle needs a radius
+    /// query.
     pub fn match_mask(&self, p: Vec3, t: Vec3, thresholds: &[Threshold], cos: &[f32]) -> u32 {
         let n = thresholds.len();
-        let all = ((1u32 << n) - 1) | (((1u32 << n) - 1) << MAX_THRESHOLDS);
-        let mut mask = 0u32;
-        if self.points.is_empty() || t == Vec3::ZERO {
+        if self.points.is_empty() || t == Vec3::ZERO || n == 0 {
             return 0;
         }
         let q = p.to_array();
-        let mut searched = -1.0f32;
-        for (k, th) in thresholds.iter().enumerate() {
-            // Bits of thresholds k.. still unset: query once with this radius.
-            let want = (((1u32 << n) - 1) >> k << k) | ((((1u32 << n) - 1) >> k << k) << MAX_THRESHOLDS);
-            if mask & want == want || th.dist <= searched {
-                continue;
+        let nearest = self.tree.nearest_one::<SquaredEuclidean>(&q);
+        let d0 = nearest.distance;
+        let c0 = self.tangents[nearest.item as usize].dot(t);
+        let mut mask = 0u32;
+        for i in 0..n {
+            let di2 = thresholds[i].dist * thresholds[i].dist;
+            if d0 > di2 {
+                continue; // nothing within d_i at all
             }
-            searched = th.dist;
-            for nb in self.tree.within_unsorted::<SquaredEuclidean>(&q, th.dist * th.dist) {
-                let j = nb.item as usize;
-                let d = nb.distance.sqrt();
-                let c = self.tangents[j].dot(t);
-                for i in k..n {
-                    if d <= thresholds[i].dist {
-                        if c > cos[i] {
-                            mask |= 1 << i;
-                        }
-                        if c.abs() > cos[i] {
-                            mask |= 1 << (MAX_THRESHOLDS + i);
-                        }
+            let (mut dir, mut und) = (c0 > cos[i], c0.abs() > cos[i]);
+            if !(dir && und) {
+                // The nearest point fails the angle test: look at every point within d_i.
+                for nb in self.tree.within_unsorted::<SquaredEuclidean>(&q, di2) {
+                    let c = self.tangents[nb.item as usize].dot(t);
+                    dir |= c > cos[i];
+                    und |= c.abs() > cos[i];
+                    if dir && und {
+                        break;
                     }
                 }
-                if mask == all {
-                    return mask;
-                }
             }
+            mask |= (dir as u32) << i | (und as u32) << (MAX_THRESHOLDS + i);
         }
         mask
     }
