@@ -94,7 +94,7 @@ def ensure_uv_map(obj: bpy.types.Object, group_name: Optional[str] = None) -> st
     loop_face = np.empty(len(me.loops), np.int64)
     loop_face[np.repeat(starts, totals) + _ranks(totals)] = np.repeat(np.arange(len(starts)), totals)
     layer = me.uv_layers.new(name=HAIR_UV_MAP)
-    layer.uv.foreach_set("vector", loop_uvs(co, co[keep], loop_v, loop_face).ravel())
+    layer.uv.foreach_set("vector", loop_uvs(co, keep, loop_v, loop_face).ravel())
     me.uv_layers.active = layer
     return layer.name
 
@@ -112,9 +112,12 @@ def attach(points_local: np.ndarray, counts: np.ndarray, surface: bpy.types.Obje
     # degenerate triangles (e.g. at a UV sphere's poles) have no meaningful barycentric UV: skip them
     area2 = np.linalg.norm(np.cross(co[tri_v[:, 1]] - co[tri_v[:, 0]], co[tri_v[:, 2]] - co[tri_v[:, 0]]), axis=1)
     good = area2 > 1e-7 * max(float(area2.max(initial=0.0)), 1e-30)
+    # ...and neither have triangles without UV area (faces parked outside the scalp's UV map)
+    e1, e2 = tri_uv[:, 1] - tri_uv[:, 0], tri_uv[:, 2] - tri_uv[:, 0]
+    good &= np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 1e-12
     tri_v, tri_uv = tri_v[good], tri_uv[good]
     if len(tri_v) == 0:
-        raise ValueError(f"the scalp {surface.name!r} has no faces with an area")
+        raise ValueError(f"the scalp {surface.name!r} has no faces with an area in its UV map")
     bvh = BVHTree.FromPolygons([tuple(p) for p in co], [tuple(t) for t in tri_v], all_triangles=True)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     roots = points_local[starts]

@@ -181,10 +181,10 @@ def extension_package():
     return importlib.import_module(_PACKAGE["name"])
 
 
-def run_op(op, **kw):
+def run_op(op, *args, **kw):
     """Calls an operator; returns (result set or None, error message or None)."""
     try:
-        return sorted(op(**kw)), None
+        return sorted(op(*args, **kw)), None
     except RuntimeError as e:
         return None, str(e)
 
@@ -288,12 +288,12 @@ def curves_report(obj) -> dict:
     return out
 
 
-def attach_node_check(obj, offset=0.01) -> dict:
+def attach_node_check(obj, scale=0.05) -> dict:
     """Blender's own use of the attachment:
     (1) the "Attach Hair Curves to Surface" node group (from Blender's hair assets), told to sample
         the UV at each root itself, must find the UVs the add-on stored in surface_uv_coordinate;
     (2) the result's "Surface Deform" modifier (Deform Curves on Surface, driven by the stored UVs)
-        must carry the hair along when the scalp moves: a Displace modifier lifts it by `offset`."""
+        must carry the hair along when the scalp deforms: here it grows by `scale`."""
     cv = obj.data
     surf = cv.surface
     path = Path(bpy.utils.system_resource("DATAFILES")) / "assets" / "nodes" / "procedural_hair_node_assets.blend"
@@ -350,13 +350,29 @@ def attach_node_check(obj, offset=0.01) -> dict:
         return (p - p0).reshape(-1, 3)
 
     out["still_max_mm"] = float(1000 * np.abs(evaluated()).max())
-    disp = surf.modifiers.new("move", "DISPLACE")
-    disp.direction, disp.mid_level, disp.strength = "Z", 0.0, offset
+    # scale the scalp by (1 + scale) about its origin with a Geometry Nodes modifier: each root's
+    # surface point s moves by scale * s, a different vector per curve, so a curve attached through
+    # a wrong UV (a wrong triangle) would move wrongly; the frames do not rotate, so every point of
+    # a curve moves like its root
+    gn = bpy.data.node_groups.new("scale scalp", "GeometryNodeTree")
+    gn.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    gn.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gi, go, tr = gn.nodes.new("NodeGroupInput"), gn.nodes.new("NodeGroupOutput"), gn.nodes.new("GeometryNodeTransform")
+    tr.inputs["Scale"].default_value = (1.0 + scale,) * 3
+    gn.links.new(gi.outputs[0], tr.inputs[0])
+    gn.links.new(tr.outputs[0], go.inputs[0])
+    smod = surf.modifiers.new("scale", "NODES")
+    smod.node_group = gn
     d = evaluated()
-    surf.modifiers.remove(disp)
-    want = np.array([0.0, 0.0, offset])  # curves-local = surface-local (parented, identity inverse)
-    out["moved_err_max_mm"] = float(1000 * np.abs(d - want).max())
-    out["moved_mean_mm"] = (1000 * d.mean(axis=0)).tolist()
+    surf.modifiers.remove(smod)
+    bpy.data.node_groups.remove(gn)
+    off = np.empty(n + 1, np.int32)
+    cv.curve_offset_data.foreach_get("value", off)
+    roots = p0.reshape(-1, 3)[off[:-1]].astype(np.float64)  # curves-local = surface-local
+    want = np.repeat(scale * roots, np.diff(off), axis=0)
+    err = np.linalg.norm(d - want, axis=1)
+    out["moved_err_max_mm"] = float(1000 * err.max())
+    out["moved_mean_mm"] = float(1000 * np.linalg.norm(d, axis=1).mean())
     return out
 
 
@@ -422,14 +438,16 @@ def task_pipeline(p):
     out["camera_roundtrip"] = {"K_max_abs": worst_k, "Rt_max_abs": worst_rt}
 
     configure(p)
+    bpy.ops.ed.undo_push(message="scene ready")  # background mode starts without an undo system
     runs = []
     for run in range(2):
         before = snapshot()
         t0 = time.monotonic()
-        res, err = run_op(bpy.ops.hairrecon.reconstruct)
+        # as from the UI: 'EXEC_DEFAULT' with undo=True pushes the operator's undo step
+        res, err = run_op(bpy.ops.hairrecon.reconstruct, "EXEC_DEFAULT", True)
         objs = new_result_objects(before)
         runs.append({
-            "result": res, "error": err, "seconds": time.monotonic() - t0,
+            "before": before, "result": res, "error": err, "seconds": time.monotonic() - t0,
             "new": {k: sorted(set(snapshot()[k]) - set(before[k])) for k in DATA_KINDS},
             "gone": {k: sorted(set(before[k]) - set(snapshot()[k])) for k in DATA_KINDS},
             "curves": [curves_report(o) for o in objs if o.type == "CURVES"],
@@ -466,12 +484,54 @@ def task_pipeline(p):
         res, err = run_op(bpy.ops.hairrecon.export_hair, filepath=str(Path(p["workdir"]) / "export.abc"))
         exp[".abc"] = {"result": res, "error": err}
         out["export"] = exp
+    if len(runs) == 2 and not runs[-1]["error"]:
+        # undo (the operator has bl_options UNDO) takes the second result away again
+        before_second = runs[-1]["before"]
+        bpy.ops.ed.undo()
+        after = snapshot()
+        out["undo"] = {"restored": after == before_second,
+                       "objects_left": sorted(set(after["objects"]) - set(out["import"]["snapshot"]["objects"]))}
     if p.get("save_blend"):
-        # a scene for the batch-script test: the capture imported, settings made, no results
+        # a scene for the batch-script test: the capture imported, settings made, no results, and
+        # a "scalp" vertex group on the head (the batch test reconstructs with it)
         for o in new_result_objects(out["import"]["snapshot"]):
             bpy.data.objects.remove(o)
+        out["scalp_group_vertices"] = make_scalp_group()
         bpy.ops.wm.save_as_mainfile(filepath=p["save_blend"])
         out["saved"] = p["save_blend"]
+    for r in runs:
+        r.pop("before", None)
+    return out
+
+
+def make_scalp_group() -> int:
+    """A "scalp" vertex group on the head mesh: its vertices within 3 mm of the scalp mesh."""
+    from mathutils.bvhtree import BVHTree
+
+    s = bpy.context.scene.hairrecon
+    head, scalp = s.head_object, s.scalp_object
+    bvh = BVHTree.FromObject(scalp, bpy.context.evaluated_depsgraph_get())
+    m_h, m_s_inv = head.matrix_world, scalp.matrix_world.inverted()
+    near = []
+    for v in head.data.vertices:
+        hit = bvh.find_nearest(m_s_inv @ (m_h @ v.co))
+        if hit[0] is not None and hit[3] < 0.003:
+            near.append(v.index)
+    vg = head.vertex_groups.new(name="scalp")
+    vg.add(near, 1.0, "REPLACE")
+    return len(near)
+
+
+def task_inspect(p):
+    """Opens a .blend and reports its hair Curves objects (for the batch-script test)."""
+    bpy.ops.wm.open_mainfile(filepath=p["blend"])
+    hair = [o for o in bpy.data.objects if o.type == "CURVES"]
+    out = {"curves": [curves_report(o) for o in hair]}
+    head = bpy.data.objects.get(p.get("head", "head"))
+    out["head_uv_maps"] = [l.name for l in head.data.uv_layers] if head else None
+    children = [o for o in hair if not o.name.endswith("Guides")]
+    if children:
+        out["attach_node"] = attach_node_check(children[0])
     return out
 
 
@@ -670,6 +730,7 @@ TASKS = {
     "pipeline": task_pipeline,
     "cancel": task_cancel,
     "bad_inputs": task_bad_inputs,
+    "inspect": task_inspect,
 }
 
 

@@ -82,23 +82,29 @@ def scalp_uv(points: np.ndarray, scalp: np.ndarray | None = None, return_theta: 
     return azimuthal_uv(np.asarray(points, dtype=np.float64), centre, pole, return_theta)
 
 
-# where faces far from the scalp put their UVs: outside the disk that holds every face within
-# FOLD_ANGLE of the pole, as zero-area UV triangles that contain no other UV
-FOLD_ANGLE = np.deg2rad(135.0)
+# where faces off the scalp put their UVs: outside the disk that holds every face within
+# FOLD_ANGLE of the pole, as zero-area UV triangles that contain no other UV; faces reaching
+# beyond FOLD_ANGLE (around the pole's antipode, where the projection wraps) are parked too
+FOLD_ANGLE = np.deg2rad(170.0)
 PARKED_UV = (0.98, 0.98)
 
 
-def loop_uvs(points: np.ndarray, scalp: np.ndarray, loop_vertex: np.ndarray, loop_face: np.ndarray) -> np.ndarray:
+def loop_uvs(points: np.ndarray, in_scalp: np.ndarray, loop_vertex: np.ndarray, loop_face: np.ndarray) -> np.ndarray:
     """Per-loop UVs (L, 2) of a mesh (points (V, 3), loop_vertex (L,), loop_face (L,)) by
-    :func:`scalp_uv` about the ``scalp`` points. Near the pole's antipode the projection wraps
-    around, and faces there would cover the scalp's UVs; so every face with a vertex beyond
-    FOLD_ANGLE from the pole gets all its loops parked at PARKED_UV, which keeps the map free of
-    overlaps (Blender's hair attachment finds a curve's triangle from its UV)."""
-    uv_v, theta = scalp_uv(points, scalp, return_theta=True)
-    far = theta[loop_vertex] > FOLD_ANGLE
+    :func:`scalp_uv` about the scalp vertices (``in_scalp``, bool (V,)).
+
+    Blender's hair attachment finds a curve's triangle from its UV, so the map must not overlap
+    itself. A radial projection overlaps wherever the surface folds back as seen from the head's
+    centre (ears, eyelids, lips, the neck near the pole's antipode), so only faces touching the
+    scalp keep their projected UVs; every other face, and any face reaching beyond FOLD_ANGLE from
+    the pole, gets all its loops parked at PARKED_UV (zero-area UV triangles, outside the disk)."""
+    uv_v, theta = scalp_uv(points, points[in_scalp], return_theta=True)
     nfaces = int(loop_face.max()) + 1 if len(loop_face) else 0
-    bad = np.zeros(nfaces, bool)
-    np.logical_or.at(bad, loop_face, far)
+    far = np.zeros(nfaces, bool)
+    np.logical_or.at(far, loop_face, theta[loop_vertex] > FOLD_ANGLE)
+    touches = np.zeros(nfaces, bool)
+    np.logical_or.at(touches, loop_face, in_scalp[loop_vertex])
+    bad = far | ~touches
     uv = uv_v[loop_vertex].copy()
     uv[bad[loop_face]] = PARKED_UV
     return uv
