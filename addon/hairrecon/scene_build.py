@@ -6,6 +6,7 @@ later step fails, so the scene is left as it was.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Optional
 
@@ -141,7 +142,9 @@ def attach(points_local: np.ndarray, counts: np.ndarray, surface: bpy.types.Obje
 
 def hair_material(name: str = "Hair") -> bpy.types.Material:
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    with warnings.catch_warnings():  # Material.use_nodes: needed up to 4.x, deprecated in 5.0
+        warnings.simplefilter("ignore", DeprecationWarning)
+        mat.use_nodes = True
     nt = mat.node_tree
     for n in list(nt.nodes):
         nt.nodes.remove(n)
