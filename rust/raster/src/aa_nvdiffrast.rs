@@ -28,7 +28,7 @@ fn exit_edge(p: &Prim, ci: Vec2, co: Vec2) -> Option<(u32, f32)> {
     for k in 0..4 {
         if let Some((e0, e1)) = p.edge(k) {
             if let Some(t) = crossing(ci, co, e0, e1) {
-                if best.map_or(true, |(_, bt)| t < bt) {
+                if !matches!(best, Some((_, bt)) if t >= bt) {
                     best = Some((k as u32, t));
                 }
             }

@@ -53,9 +53,12 @@ pub mod aa_splat;
 pub mod antialias;
 pub mod error;
 pub mod image;
+pub mod letters;
+pub mod plot;
 pub mod rasterize;
 pub mod renderer;
 pub mod screen;
+pub mod synthetic;
 pub mod toy;
 
 pub use antialias::{antialias_backward, antialias_forward, AaMethod, AaOutput};

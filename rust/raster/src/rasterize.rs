@@ -45,7 +45,8 @@ pub struct Buffers {
     pub depth: Vec<f32>,
     /// Attributes, see [`channel`].
     pub attrs: Image,
-    bins: Vec<Vec<Vec<u32>>>,
+    /// Per binning chunk, per band: the primitives that come within 1 px of a pixel centre of the band.
+    pub(crate) bins: Vec<Vec<Vec<u32>>>,
 }
 
 impl Buffers {
@@ -64,16 +65,22 @@ impl Buffers {
     }
 }
 
+/// The pixel centres within the bounding box of `p` grown by `margin` pixels.
 #[inline]
-fn pixel_range(p: &crate::screen::Prim, w: u32, h: u32) -> Option<[usize; 4]> {
-    let x0 = p.bbox[0].ceil().max(0.0);
-    let y0 = p.bbox[1].ceil().max(0.0);
-    let x1 = p.bbox[2].floor().min(w as f32 - 1.0);
-    let y1 = p.bbox[3].floor().min(h as f32 - 1.0);
+pub(crate) fn pixel_range_margin(p: &crate::screen::Prim, w: u32, h: u32, margin: f32) -> Option<[usize; 4]> {
+    let x0 = (p.bbox[0] - margin).ceil().max(0.0);
+    let y0 = (p.bbox[1] - margin).ceil().max(0.0);
+    let x1 = (p.bbox[2] + margin).floor().min(w as f32 - 1.0);
+    let y1 = (p.bbox[3] + margin).floor().min(h as f32 - 1.0);
     if x0 > x1 || y0 > y1 {
         return None;
     }
     Some([x0 as usize, y0 as usize, x1 as usize, y1 as usize])
+}
+
+#[inline]
+fn pixel_range(p: &crate::screen::Prim, w: u32, h: u32) -> Option<[usize; 4]> {
+    pixel_range_margin(p, w, h, 0.0)
 }
 
 /// Rasterizes the primitives of `screen` into `buf` (overwritten, allocations reused).
@@ -97,7 +104,7 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
             if !p.valid {
                 continue;
             }
-            if let Some(r) = pixel_range(p, w, h) {
+            if let Some(r) = pixel_range_margin(p, w, h, 1.0) {
                 for band in r[1] / BAND..=r[3] / BAND {
                     bins[band].push((start + i) as u32);
                 }
@@ -164,6 +171,18 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
     });
 }
 
+/// ∂L/∂(b − a) of a primitive, given ∂L/∂cos 2θ and ∂L/∂sin 2θ.
+#[inline]
+pub(crate) fn orient_grad(p: &crate::screen::Prim, gc: f32, gs: f32) -> Vec2 {
+    let d = p.u * p.len;
+    let l2 = p.len * p.len;
+    let l4 = l2 * l2;
+    // f = (dx² − dy²)/L², g = 2 dx dy / L².
+    let df = Vec2::new(4.0 * d.x * d.y * d.y, -4.0 * d.y * d.x * d.x) / l4;
+    let dg = Vec2::new(2.0 * d.y * (d.y * d.y - d.x * d.x), 2.0 * d.x * (d.x * d.x - d.y * d.y)) / l4;
+    df * gc + dg * gs
+}
+
 /// Backward of the attributes: adds `∂L/∂(b − a)` of every visible segment, through
 /// `(cos 2θ, sin 2θ)`, to `grads.dir`. `d_attrs` has the shape of `buf.attrs`. Coverage and the 3D
 /// direction get no gradient here (coverage is constant; the 3D direction is forward only).
@@ -186,14 +205,7 @@ pub fn attributes_backward(screen: &Screen, buf: &Buffers, d_attrs: &Image, grad
                 if gc == 0.0 && gs == 0.0 {
                     continue;
                 }
-                let p = &prims[id as usize - 1];
-                let d = p.u * p.len;
-                let l2 = p.len * p.len;
-                let l4 = l2 * l2;
-                // f = (dx² − dy²)/L², g = 2 dx dy / L².
-                let df = Vec2::new(4.0 * d.x * d.y * d.y, -4.0 * d.y * d.x * d.x) / l4;
-                let dg = Vec2::new(2.0 * d.y * (d.y * d.y - d.x * d.x), 2.0 * d.x * (d.x * d.x - d.y * d.y)) / l4;
-                out.push((id - 1, df * gc + dg * gs));
+                out.push((id - 1, orient_grad(&prims[id as usize - 1], gc, gs)));
             }
             out
         })

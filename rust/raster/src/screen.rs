@@ -118,7 +118,7 @@ impl Prim {
     fn build(a: Vec2, b: Vec2, hw0: f32, hw1: f32, z0: f32, z1: f32) -> Self {
         let d = b - a;
         let len = d.length();
-        if !(len > 1e-6) {
+        if len.is_nan() || len <= 1e-6 {
             return Prim::default();
         }
         let u = d / len;
@@ -440,6 +440,25 @@ pub(crate) fn line_distance(q: Vec2, e0: Vec2, e1: Vec2) -> (f32, Vec2, Vec2) {
     let dr_dv = Vec2::new(-d.y, d.x) * (sg / l);
     let dr_dd = Vec2::new(v.y, -v.x) * (sg / l) - d * (r / (l * l));
     (r, -dr_dd - dr_dv, dr_dd)
+}
+
+/// Distance from `q` to the segment `e0`–`e1` (to its nearer end beyond the ends), and its gradient
+/// with respect to `e0` and `e1`.
+#[inline]
+pub(crate) fn segment_distance(q: Vec2, e0: Vec2, e1: Vec2) -> (f32, Vec2, Vec2) {
+    let d = e1 - e0;
+    let t = (q - e0).dot(d) / d.length_squared();
+    if t <= 0.0 {
+        let v = e0 - q;
+        let r = v.length();
+        (r, if r > 0.0 { v / r } else { Vec2::ZERO }, Vec2::ZERO)
+    } else if t >= 1.0 {
+        let v = e1 - q;
+        let r = v.length();
+        (r, Vec2::ZERO, if r > 0.0 { v / r } else { Vec2::ZERO })
+    } else {
+        line_distance(q, e0, e1)
+    }
 }
 
 /// Where the segment `p0 → p1` crosses the segment `e0 → e1`: the parameter along `p0 → p1`.

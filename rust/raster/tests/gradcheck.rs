@@ -68,7 +68,7 @@ fn make_case(rng: &mut Rng, i: usize) -> Case {
     let chained = rng.int(2) == 0;
     let mut pix = Vec::new();
     let mut segs = Vec::new();
-    let mut pt = |rng: &mut Rng| Vec2::new(rng.range(2.0, w as f32 - 3.0), rng.range(2.0, h as f32 - 3.0));
+    let pt = |rng: &mut Rng| Vec2::new(rng.range(2.0, w as f32 - 3.0), rng.range(2.0, h as f32 - 3.0));
     if chained {
         pix.push(pt(rng));
         for s in 0..nseg {

@@ -1,0 +1,62 @@
+//! Hard rasterization: coverage of pixel centres, depth order, bands, and the orientation attribute.
+
+use glam::Vec2;
+use hairrecon_raster::{channel, rasterize, Buffers, RasterSettings, Screen, SegmentShape, Width};
+
+fn quad(width: f32) -> RasterSettings {
+    RasterSettings { width: Width::Pixels(width), shape: SegmentShape::Quad, direction_3d: false }
+}
+
+#[test]
+fn a_horizontal_quad_covers_exactly_its_pixel_centres() {
+    // From x = 2.5 to 12.5 at y = 10.2, 1.2 px wide: covers y in [9.6, 10.8] -> row 10 only, x 3..=12.
+    let s = Screen::from_pixels(20, 20, &[Vec2::new(2.5, 10.2), Vec2::new(12.5, 10.2)], None, &[[0, 1]], quad(1.2))
+        .unwrap();
+    let mut b = Buffers::new();
+    rasterize(&s, &mut b);
+    for y in 0..20 {
+        for x in 0..20 {
+            let want = y == 10 && (3..=12).contains(&x);
+            assert_eq!(b.id(x, y) == 1, want, "pixel ({x}, {y})");
+        }
+    }
+    assert_eq!(b.attrs.at(5, 10, channel::COVERAGE), 1.0);
+    assert!((b.attrs.at(5, 10, channel::COS2) - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn nearer_segment_wins_and_bands_join() {
+    // Two crossing segments spanning several bands; the second is nearer.
+    let pos = [Vec2::new(1.0, 1.0), Vec2::new(30.0, 30.0), Vec2::new(30.0, 1.0), Vec2::new(1.0, 30.0)];
+    let depth = [2.0, 2.0, 1.0, 1.0];
+    let s = Screen::from_pixels(32, 32, &pos, Some(&depth), &[[0, 1], [2, 3]], quad(2.0)).unwrap();
+    let mut b = Buffers::new();
+    rasterize(&s, &mut b);
+    assert_eq!(b.id(15, 15), 2, "the nearer segment must win at the crossing");
+    assert_eq!(b.id(5, 5), 1);
+    assert_eq!(b.id(25, 25), 1);
+    assert_eq!(b.id(5, 26), 2);
+    // Diagonal: (cos 2θ, sin 2θ) = (0, 1) for 45°.
+    assert!((b.attrs.at(5, 5, channel::SIN2) - 1.0).abs() < 1e-5);
+}
+
+#[test]
+fn triangle_tapers_to_its_apex() {
+    let s = Screen::from_pixels(
+        40,
+        10,
+        &[Vec2::new(1.0, 5.0), Vec2::new(38.0, 5.0)],
+        None,
+        &[[0, 1]],
+        RasterSettings { width: Width::Pixels(4.0), shape: SegmentShape::Triangle, direction_3d: false },
+    )
+    .unwrap();
+    let mut b = Buffers::new();
+    rasterize(&s, &mut b);
+    // Half width 2 at x = 1 shrinking to 0 at x = 38: at x = 2 (half width 1.95) rows 4 to 6 are
+    // covered and row 3 (2 px away) is not; at x = 30 (half width 0.43) only row 5 is.
+    assert_eq!(b.id(2, 4), 1);
+    assert_eq!(b.id(2, 3), 0);
+    assert_eq!(b.id(30, 4), 0);
+    assert_eq!(b.id(30, 5), 1);
+}
