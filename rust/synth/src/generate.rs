@@ -150,12 +150,11 @@ impl HairGenerator {
                 let (mut pts, bounds) = self.strand(prm, root, length, phase, c.turns, n, layer, &mut rng);
                 // Clumping: toward the guide, more toward the tip.
                 let strength = prm.clump_strength * rng.random_range(0.6f32..1.0);
-                let side = if root.position.x >= 0.0 { Vec3::X } else { Vec3::NEG_X };
                 for (k, p) in pts.iter_mut().enumerate().skip(1) {
                     let t = k as f32 / (n - 1) as f32;
                     let w = strength * smoothstep(t / 0.6) * (0.5 + 0.5 * t);
                     let moved = p.lerp(c.guide[k], w);
-                    let moved = face_guard(moved, side).unwrap_or(moved);
+                    let moved = face_guard(moved, side_of(*p)).unwrap_or(moved);
                     // The point was at least `offset` outside before this move: it can only have
                     // gone as deep as the move is long.
                     let step = moved.distance(*p);
@@ -242,7 +241,7 @@ impl HairGenerator {
                     (q, bound) = self.collider.push_out_bound(p + h * d, off, reach);
                 }
             }
-            if let Some(g) = face_guard(q, side) {
+            if let Some(g) = face_guard(q, side_of(p)) {
                 d = (g - p).normalize_or(d);
                 q = g;
                 bound = 0.0;
@@ -299,14 +298,23 @@ fn nearest(clumps: &[Clump], root: &Root) -> usize {
 }
 
 /// How much a root counts as "at the front" (combed away from the middle parting): 1 in front of
-/// y = −0.05 m, 0 behind y = 0.03 m.
+/// y = −0.02 m, 0 behind y = 0.06 m (near the whorl).
 fn front_weight(p: Vec3) -> f32 {
-    smoothstep((0.03 - p.y) / 0.08)
+    smoothstep((0.06 - p.y) / 0.08)
+}
+
+/// The side of the middle parting that `p` is on.
+fn side_of(p: Vec3) -> Vec3 {
+    if p.x >= 0.0 {
+        Vec3::X
+    } else {
+        Vec3::NEG_X
+    }
 }
 
 /// The face guard: a point in front of the face (`y < FACE_GUARD_Y`, between `FACE_GUARD_Z`) that
-/// is closer to the middle than `FACE_GUARD_X` is moved sideways, to the given side, onto that
-/// half-width. Returns `None` when the point is not in front of the face.
+/// is closer to the middle than `FACE_GUARD_X` is moved sideways, to the given side (that of the
+/// point before it, so the move is short), onto that half-width. Returns `None` when the point is not in front of the face.
 fn face_guard(p: Vec3, side: Vec3) -> Option<Vec3> {
     let inside = p.y < FACE_GUARD_Y && p.z > FACE_GUARD_Z[0] && p.z < FACE_GUARD_Z[1] && p.x.abs() < FACE_GUARD_X;
     inside.then(|| Vec3::new(side.x * FACE_GUARD_X, p.y, p.z))
