@@ -13,6 +13,7 @@
 //! - [`metrics`]: per-stage metrics against ground truth.
 
 pub mod direction;
+pub mod dr;
 pub mod grow;
 pub mod laplace;
 pub mod metrics;

@@ -1,0 +1,145 @@
+//! The losses of Dr.Hair's strand optimization (CVPR 2024, §3.2; supplement §3.2 lists them:
+//! L_m, L_o, R_root, R_c and a regularizer that equalises segment lengths).
+//!
+//! - [`image_loss`]: per view, on the anti-aliased render `ĉ` (channels coverage and
+//!   `(cos 2θ, sin 2θ)`, see `hairrecon_raster::channel`):
+//!   `L_m = ½ w_m Σ_p (ĉ_cov − m)²` against the hair mask `m ∈ [0, 1]`, and
+//!   `L_o = ½ w_o Σ_p κ_p ‖ĉ_o − ĉ_cov t_p‖²` against the Gabor orientation `t_p = (cos 2θ, sin 2θ)`
+//!   with confidence `κ_p`. The rendered orientation channels are premultiplied by coverage
+//!   (background renders 0), so comparing them with `ĉ_cov t` weights the orientation error by the
+//!   rendered coverage, and a pixel the strands do not reach costs nothing. Where the target has a
+//!   head depth map, a pixel whose nearest strand lies behind the head renders as background and
+//!   sends no gradient (the head occludes it; ours).
+//! - [`regularizers`]: `R_c = ½ w_c Σ ‖p_{i−1} − 2p_i + p_{i+1}‖² / s²` (curvature as second
+//!   differences) and `R_len = ½ w_len Σ (l_j − l̄)² / s²` per strand (segment lengths against their
+//!   strand's mean; the mean's own derivative cancels since `Σ (l_j − l̄) = 0`), with `s` a fixed
+//!   length scale (the median initial segment length), so the weights are dimensionless. R_root is
+//!   exact: roots are not optimized (see [`crate::dr::reparam`]).
+
+use glam::Vec3;
+use hairrecon_raster::{channel, Image};
+
+use super::DrView;
+
+/// Weights of the losses.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LossWeights {
+    pub mask: f32,
+    pub orientation: f32,
+    pub curvature: f32,
+    pub length: f32,
+}
+
+impl Default for LossWeights {
+    fn default() -> Self {
+        Self { mask: 1.0, orientation: 0.5, curvature: 0.05, length: 0.05 }
+    }
+}
+
+/// L_m + L_o of one view; writes ∂L/∂ĉ into `d_image` (same shape as `img`). `strand_depth` is the
+/// hard raster's depth per pixel (`f32::INFINITY` for background).
+pub fn image_loss(img: &Image, strand_depth: &[f32], view: &DrView, w: &LossWeights, d_image: &mut Image) -> f64 {
+    let nch = img.channels;
+    d_image.reset(img.width, img.height, nch);
+    let mut loss = 0.0f64;
+    for p in 0..img.num_pixels() {
+        let c = &img.data[p * nch..p * nch + 3];
+        let hidden = view.head_depth.as_ref().is_some_and(|h| strand_depth[p] > h[p]);
+        let (cov, oc, os) =
+            if hidden { (0.0, 0.0, 0.0) } else { (c[channel::COVERAGE], c[channel::COS2], c[channel::SIN2]) };
+        let [tc, ts, conf] = view.orientation[p];
+        let em = cov - view.mask[p];
+        let (rc, rs) = (oc - cov * tc, os - cov * ts);
+        let wo = w.orientation * conf;
+        loss += 0.5 * (w.mask * em * em + wo * (rc * rc + rs * rs)) as f64;
+        if hidden {
+            continue;
+        }
+        let d = &mut d_image.data[p * nch..p * nch + 3];
+        d[channel::COVERAGE] = w.mask * em - wo * (rc * tc + rs * ts);
+        d[channel::COS2] = wo * rc;
+        d[channel::SIN2] = wo * rs;
+    }
+    loss
+}
+
+/// R_c + R_len over strands with the given offsets; adds the gradient into `grad`.
+pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeights, grad: &mut [Vec3]) -> f64 {
+    let inv_s2 = 1.0 / (scale * scale).max(1e-20);
+    let (wc, wl) = (w.curvature * inv_s2, w.length * inv_s2);
+    let mut loss = 0.0f64;
+    for s in 0..offsets.len().saturating_sub(1) {
+        let (o, e) = (offsets[s], offsets[s + 1]);
+        let p = &points[o..e];
+        let g = &mut grad[o..e];
+        let n = p.len();
+        if wl > 0.0 && n >= 3 {
+            let mean = p.windows(2).map(|q| (q[1] - q[0]).length()).sum::<f32>() / (n - 1) as f32;
+            for i in 0..n - 1 {
+                let v = p[i + 1] - p[i];
+                let l = v.length().max(1e-12);
+                let e = l - mean;
+                loss += 0.5 * (wl * e * e) as f64;
+                let gv = v * (wl * e / l);
+                g[i + 1] += gv;
+                g[i] -= gv;
+            }
+        }
+        if wc > 0.0 {
+            for i in 1..n.saturating_sub(1) {
+                let c = p[i - 1] - p[i] * 2.0 + p[i + 1];
+                loss += 0.5 * (wc * c.length_squared()) as f64;
+                let gc = c * wc;
+                g[i - 1] += gc;
+                g[i] -= gc * 2.0;
+                g[i + 1] += gc;
+            }
+        }
+    }
+    loss
+}
+
+/// The median segment length of strands with the given offsets (the length scale `s`).
+pub fn median_segment_length(points: &[Vec3], offsets: &[usize]) -> f32 {
+    let mut l: Vec<f32> = Vec::with_capacity(points.len());
+    for s in 0..offsets.len().saturating_sub(1) {
+        l.extend(points[offsets[s]..offsets[s + 1]].windows(2).map(|q| (q[1] - q[0]).length()));
+    }
+    if l.is_empty() {
+        return 1e-3;
+    }
+    let k = l.len() / 2;
+    l.select_nth_unstable_by(k, f32::total_cmp);
+    l[k].max(1e-6)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regularizer_gradient_matches_finite_differences() {
+        let pts: Vec<Vec3> = (0..7)
+            .map(|i| Vec3::new((i as f32 * 0.9).sin() * 0.003, 0.002 * i as f32, -0.001 * (i * i) as f32))
+            .collect();
+        let offsets = [0usize, 3, 7];
+        let w = LossWeights { mask: 0.0, orientation: 0.0, curvature: 0.7, length: 1.3 };
+        let s = 0.002;
+        let mut g = vec![Vec3::ZERO; pts.len()];
+        regularizers(&pts, &offsets, s, &w, &mut g);
+        let h = 1e-6f32;
+        for i in 0..pts.len() {
+            for c in 0..3 {
+                let (mut a, mut b) = (pts.clone(), pts.clone());
+                a[i][c] += h;
+                b[i][c] -= h;
+                let mut scratch = vec![Vec3::ZERO; pts.len()];
+                let fd = (regularizers(&a, &offsets, s, &w, &mut scratch)
+                    - regularizers(&b, &offsets, s, &w, &mut scratch))
+                    / (2.0 * h as f64);
+                let err = (fd as f32 - g[i][c]).abs();
+                assert!(err <= 0.02 * fd.abs() as f32 + 0.5, "point {i} coord {c}: fd {fd} analytic {}", g[i][c]);
+            }
+        }
+    }
+}

@@ -1,0 +1,245 @@
+//! Stage 6: strand optimization by differentiable rendering of line segments (Dr.Hair, Takimoto et
+//! al., CVPR 2024, §3.2; `docs/method.md` §5; supplement §3.2 and §4.3).
+//!
+//! In: the initial guides and children of [`crate::grow`], [`DrTargets`] (per view: camera, hair
+//! mask as coverage in [0, 1], the orientation `(cos 2θ, sin 2θ)` with confidence of
+//! [`crate::orient2d`], optionally the head's depth as an occluder), the scalp and head BVHs, and
+//! [`DrOptions`]. Out: [`DrResult`]: optimized guides and children (roots on the scalp, no point
+//! inside the head, even segment lengths) and the loss curve. Entry point: [`optimize`].
+//!
+//! One file per part:
+//! - [`losses`]: L_m, L_o, R_c and the segment-length regularizer (R_root holds exactly: roots are
+//!   fixed on the scalp).
+//! - [`reparam`]: u = (I + λL) x with L = F (along strands) + N (between the k nearest strands),
+//!   after Nicolet et al. 2021.
+//! - [`adam`]: Adam, with the uniform variant of Nicolet et al.
+//! - [`children`]: children as a linear function of the guides, for the guide stage.
+//! - [`optimize`](mod@optimize): the hierarchy (guides, then children), random views per step,
+//!   rayon over views, and the final simulation-ready pass.
+
+pub mod adam;
+pub mod children;
+pub mod losses;
+pub mod optimize;
+pub mod reparam;
+
+use glam::{Vec2, Vec3};
+use hairrecon_core::capture::Capture;
+use hairrecon_core::{Bvh, Camera};
+use hairrecon_raster::RasterError;
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::orient2d::{GrayImage, Orient2dError, OrientationMap};
+use crate::progress::Cancelled;
+
+pub use losses::LossWeights;
+pub use optimize::{finalize, optimize};
+pub use reparam::KnnKey;
+
+/// Why the DR stage stopped.
+#[derive(Debug, Error)]
+pub enum DrError {
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+    #[error("rendering failed: {0}")]
+    Render(#[from] RasterError),
+    #[error(transparent)]
+    Orient2d(#[from] Orient2dError),
+    #[error("no views to optimize against; give DrTargets at least one view")]
+    NoViews,
+    #[error("view {view}: {what} has {got} pixels but the camera is {width}x{height}")]
+    Size { view: usize, what: &'static str, got: usize, width: u32, height: u32 },
+    #[error("{0} views were given but {1} orientation maps; give one map per view")]
+    MapCount(usize, usize),
+    #[error("the strands have no points to optimize")]
+    Empty,
+    #[error("the optimization diverged (non-finite loss at iteration {0}); lower the learning rate")]
+    Diverged(usize),
+}
+
+/// What one view asks the render to look like.
+#[derive(Debug, Clone)]
+pub struct DrView {
+    pub camera: Camera,
+    /// Hair coverage in [0, 1], row-major.
+    pub mask: Vec<f32>,
+    /// Per pixel `[cos 2θ, sin 2θ, confidence]`.
+    pub orientation: Vec<[f32; 3]>,
+    /// Depth (camera z) of the head per pixel, `f32::INFINITY` where there is none; strands
+    /// behind it are hidden.
+    pub head_depth: Option<Vec<f32>>,
+}
+
+impl DrView {
+    /// Checks the sizes against the camera.
+    pub fn new(
+        view: usize,
+        camera: Camera,
+        mask: Vec<f32>,
+        orientation: Vec<[f32; 3]>,
+        head_depth: Option<Vec<f32>>,
+    ) -> Result<Self, DrError> {
+        let (w, h) = (camera.width(), camera.height());
+        let n = w as usize * h as usize;
+        let check = |what, got: usize| {
+            if got == n {
+                Ok(())
+            } else {
+                Err(DrError::Size { view, what, got, width: w, height: h })
+            }
+        };
+        check("the mask", mask.len())?;
+        check("the orientation map", orientation.len())?;
+        if let Some(d) = &head_depth {
+            check("the head depth", d.len())?;
+        }
+        let mask = mask.into_iter().map(|m| if m.is_finite() { m.clamp(0.0, 1.0) } else { 0.0 }).collect();
+        let orientation = orientation
+            .into_iter()
+            .map(
+                |[c, s, k]| if c.is_finite() && s.is_finite() && k.is_finite() { [c, s, k.max(0.0)] } else { [0.0; 3] },
+            )
+            .collect();
+        Ok(Self { camera, mask, orientation, head_depth })
+    }
+
+    /// The head's depth per pixel seen by `camera`, by ray casting (`f32::INFINITY` where the ray
+    /// misses).
+    pub fn head_depth_map(camera: &Camera, head: &Bvh) -> Vec<f32> {
+        let (w, h) = (camera.width() as usize, camera.height() as usize);
+        let c = camera.center();
+        (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let px = Vec2::new((i % w) as f32, (i / w) as f32);
+                let d = camera.ray_direction(px);
+                match head.ray_cast(c, d, 0.0, f32::INFINITY) {
+                    Some(hit) => camera.to_camera(c + d * hit.t).z,
+                    None => f32::INFINITY,
+                }
+            })
+            .collect()
+    }
+}
+
+/// The targets of every view.
+#[derive(Debug, Clone, Default)]
+pub struct DrTargets {
+    pub views: Vec<DrView>,
+}
+
+impl DrTargets {
+    /// Targets from a capture and its orientation maps (one per view, as [`crate::orient2d`] or
+    /// [`crate::pipeline::load_orient2d`] give them). The mask of a view is its hair mask (as
+    /// coverage, the luminance in [0, 1]); without one, pixels with orientation confidence above 0
+    /// count as hair. With `head`, strands behind the head are hidden.
+    pub fn from_capture(capture: &Capture, maps: &[OrientationMap], head: Option<&Bvh>) -> Result<Self, DrError> {
+        if maps.len() != capture.views.len() {
+            return Err(DrError::MapCount(capture.views.len(), maps.len()));
+        }
+        let mut views = Vec::with_capacity(maps.len());
+        for (i, (v, m)) in capture.views.iter().zip(maps).enumerate() {
+            let mask = match &v.mask {
+                Some(p) => GrayImage::load(p)?.data,
+                None => m.confidence.iter().map(|&c| if c > 0.0 { 1.0 } else { 0.0 }).collect(),
+            };
+            let orientation =
+                m.theta.iter().zip(&m.confidence).map(|(t, c)| [(2.0 * t).cos(), (2.0 * t).sin(), *c]).collect();
+            let depth = head.map(|h| DrView::head_depth_map(&v.camera, h));
+            views.push(DrView::new(i, v.camera.clone(), mask, orientation, depth)?);
+        }
+        Ok(Self { views })
+    }
+}
+
+/// Options of [`optimize`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrOptions {
+    /// Adam steps on the guides (0 or `guide_opt = false`: no guide stage).
+    pub iterations_guides: usize,
+    /// Adam steps on the children.
+    pub iterations_children: usize,
+    /// Adam learning rate in u, metres per step (the largest step of one coordinate of u with the
+    /// uniform Adam).
+    pub lr: f32,
+    /// λ of `u = (I + λL) x`.
+    pub lambda: f32,
+    /// k of the kNN Laplacian N (supplement: 10).
+    pub k_neighbors: usize,
+    /// Weight of an N edge against an F edge.
+    pub neighbor_weight: f32,
+    /// Which strand point the kNN search of N uses.
+    pub knn_key: KnnKey,
+    /// Strand width, metres (paper: 0.2 mm).
+    pub width_m: f32,
+    /// Views rendered per step (random, seeded).
+    pub views_per_step: usize,
+    /// Reparameterization on (false: Adam on the points, the "w/o reparam." ablation).
+    pub reparam: bool,
+    /// N in the Laplacian (false: F only, the "w/o N" ablation).
+    pub neighbor_reparam: bool,
+    /// The guide stage (false: children from the start, the "w/o guide opt." ablation).
+    pub guide_opt: bool,
+    /// The uniform Adam of Nicolet et al. (false: per-coordinate Adam).
+    pub uniform_adam: bool,
+    /// Guides per child in the guide stage's child map.
+    pub child_k: usize,
+    /// Points are kept at least this far outside the head, metres.
+    pub head_clearance: f32,
+    /// Points are pushed out of the head every this many steps (and at the end).
+    pub project_every: usize,
+    /// Resample every strand to equal segment lengths at the end.
+    pub equalize_at_end: bool,
+    pub weights: LossWeights,
+    pub seed: u64,
+}
+
+impl Default for DrOptions {
+    fn default() -> Self {
+        Self {
+            iterations_guides: 100,
+            iterations_children: 50,
+            lr: 2e-4,
+            lambda: 20.0,
+            k_neighbors: 10,
+            neighbor_weight: 0.2,
+            knn_key: KnnKey::Middle,
+            width_m: 0.0002,
+            views_per_step: 4,
+            reparam: true,
+            neighbor_reparam: true,
+            guide_opt: true,
+            uniform_adam: true,
+            child_k: 4,
+            head_clearance: 0.001,
+            project_every: 10,
+            equalize_at_end: true,
+            weights: LossWeights::default(),
+            seed: 0,
+        }
+    }
+}
+
+/// What [`optimize`] returns.
+#[derive(Debug, Clone)]
+pub struct DrResult {
+    pub guides: hairrecon_core::StrandSet,
+    pub children: hairrecon_core::StrandSet,
+    /// (global iteration, loss) per step: the guide stage first, then the children's.
+    pub loss_curve: Vec<(usize, f32)>,
+    /// Mean conjugate-gradient iterations per solve.
+    pub mean_cg_iterations: f32,
+}
+
+/// A point is moved out of the head to `clearance` outside it if it is closer or inside.
+pub(crate) fn push_out_of_head(head: &Bvh, p: Vec3, clearance: f32) -> Vec3 {
+    let Some(cp) = head.closest_point(p, 0.05) else { return p };
+    let n = head.pseudo_normal(&cp);
+    let signed = if (p - cp.point).dot(n) < 0.0 { -cp.distance } else { cp.distance };
+    if signed >= clearance {
+        p
+    } else {
+        cp.point + n.normalize_or_zero() * clearance
+    }
+}

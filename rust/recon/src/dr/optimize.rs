@@ -1,0 +1,372 @@
+//! The DR optimization loop of Dr.Hair (CVPR 2024, §3.2 "Hierarchical Strand Optimization"):
+//! guides first, with the children following them through [`ChildMap`] and the children's render
+//! sending gradients back to the guides; then every child on its own, with N tying neighbours.
+//!
+//! Per step: pick `views_per_step` views at random (seeded), render the strands in each (rayon
+//! over views, one [`Renderer`] per slot), take ∂(L_m + L_o)/∂points from the renderer's backward
+//! pass, add the regularizers, map the gradient to u (`M⁻¹ g`, [`Reparam`]), take an Adam step in u
+//! and move the points by `M⁻¹ Δu`. Roots never move. Every `project_every` steps and at the end,
+//! points inside the head are pushed out. [`finalize`] makes the output simulation-ready: roots on
+//! the scalp, even segment lengths, no point inside the head.
+
+use glam::Vec3;
+use hairrecon_core::{Bvh, StrandSet};
+use hairrecon_raster::{AaMethod, Image, RasterSettings, Renderer, SegmentShape, Width};
+use rayon::prelude::*;
+
+use super::adam::Adam;
+use super::children::ChildMap;
+use super::losses::{image_loss, median_segment_length, regularizers};
+use super::reparam::{LaplacianParams, Reparam};
+use super::{push_out_of_head, DrError, DrOptions, DrResult, DrTargets};
+use crate::progress::Progress;
+
+/// One view slot of a step: its renderer and buffers.
+#[derive(Debug)]
+struct Slot {
+    renderer: Renderer,
+    d_image: Image,
+    grad: Vec<Vec3>,
+}
+
+/// Seeded view picker (xorshift64*).
+#[derive(Debug)]
+struct Picker(u64);
+
+impl Picker {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// `k` distinct views out of `n` (partial Fisher–Yates), into `order[..k]`.
+    fn pick(&mut self, order: &mut [usize], k: usize) {
+        for i in 0..k.min(order.len()) {
+            let j = i + (self.next() % (order.len() - i) as u64) as usize;
+            order.swap(i, j);
+        }
+    }
+}
+
+/// Segments of strands with the given offsets.
+fn segments(offsets: &[usize]) -> Vec<[u32; 2]> {
+    let mut segs = Vec::with_capacity(offsets.last().copied().unwrap_or(0));
+    for w in offsets.windows(2) {
+        for i in w[0]..w[1] - 1 {
+            segs.push([i as u32, i as u32 + 1]);
+        }
+    }
+    segs
+}
+
+/// The state of one stage: the optimized points and how they are rendered.
+struct StageInput<'a> {
+    name: &'static str,
+    /// Points of the optimized strands (guides or children), roots first.
+    x: &'a mut [Vec3],
+    offsets: &'a [usize],
+    /// For the guide stage: the children that are rendered in place of `x`.
+    map: Option<&'a mut ChildMap>,
+    iterations: usize,
+    iteration_base: usize,
+}
+
+/// Statistics of a stage.
+#[derive(Debug, Default)]
+struct StageStats {
+    cg_iterations: usize,
+    solves: usize,
+}
+
+fn run_stage(
+    input: StageInput<'_>,
+    targets: &DrTargets,
+    head: Option<&Bvh>,
+    opts: &DrOptions,
+    progress: &dyn Progress,
+    loss_curve: &mut Vec<(usize, f32)>,
+) -> Result<StageStats, DrError> {
+    let StageInput { name, x, offsets, mut map, iterations, iteration_base } = input;
+    let mut stats = StageStats::default();
+    if iterations == 0 || x.is_empty() {
+        return Ok(stats);
+    }
+    let render_offsets: Vec<usize> = match &map {
+        Some(m) => m.child_offsets().to_vec(),
+        None => offsets.to_vec(),
+    };
+    let segs = segments(&render_offsets);
+    let n_render = *render_offsets.last().unwrap_or(&0);
+    let mut render_pts = vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }];
+    let lap = LaplacianParams {
+        lambda: if opts.reparam { opts.lambda } else { 0.0 },
+        k_neighbors: if opts.reparam && opts.neighbor_reparam { opts.k_neighbors } else { 0 },
+        neighbor_weight: opts.neighbor_weight,
+        key: opts.knn_key,
+    };
+    let mut reparam = Reparam::new(x, offsets, &lap);
+    let free: Vec<u32> = reparam.free().to_vec();
+    let nf = free.len();
+    let scale = median_segment_length(x, offsets);
+    let settings = RasterSettings { width: Width::World(opts.width_m), shape: SegmentShape::Quad, direction_3d: false };
+    let nv = targets.views.len();
+    let per_step = opts.views_per_step.clamp(1, nv);
+    let mut slots: Vec<Slot> = (0..per_step)
+        .map(|_| Slot { renderer: Renderer::new(AaMethod::Ours), d_image: Image::default(), grad: Vec::new() })
+        .collect();
+    let mut order: Vec<usize> = (0..nv).collect();
+    let mut picker = Picker(hairrecon_core::scalp::splitmix64(opts.seed ^ iteration_base as u64) | 1);
+    let mut adam = Adam::new(nf, opts.uniform_adam);
+    let mut g_render = vec![Vec3::ZERO; n_render];
+    let mut g_x = vec![Vec3::ZERO; x.len()];
+    let mut g_free = vec![Vec3::ZERO; nf];
+    let mut g_u = vec![Vec3::ZERO; nf];
+    let mut delta_u = vec![Vec3::ZERO; nf];
+    let mut delta_x = vec![Vec3::ZERO; nf];
+    for it in 0..iterations {
+        progress.check()?;
+        if let Some(m) = map.as_deref() {
+            m.forward(x, &mut render_pts);
+        }
+        let pts: &[Vec3] = if map.is_some() { &render_pts } else { x };
+        picker.pick(&mut order, per_step);
+        let losses: Vec<Result<f64, DrError>> = slots
+            .par_iter_mut()
+            .zip(order[..per_step].par_iter())
+            .map(|(slot, &v)| {
+                let view = &targets.views[v];
+                slot.renderer.forward(&view.camera, pts, &segs, settings)?;
+                let r = &slot.renderer;
+                let loss = image_loss(&r.aa.image, &r.buffers.depth, view, &opts.weights, &mut slot.d_image);
+                slot.grad.clear();
+                slot.grad.resize(pts.len(), Vec3::ZERO);
+                slot.renderer.backward(&view.camera, pts, &slot.d_image, &mut slot.grad)?;
+                Ok(loss)
+            })
+            .collect();
+        let inv_v = 1.0 / per_step as f32;
+        let mut loss = 0.0f64;
+        for l in losses {
+            loss += l? * inv_v as f64;
+        }
+        g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
+        for slot in &slots {
+            for (g, s) in g_render.iter_mut().zip(&slot.grad) {
+                *g += *s * inv_v;
+            }
+        }
+        match map.as_deref_mut() {
+            Some(m) => {
+                g_x.iter_mut().for_each(|g| *g = Vec3::ZERO);
+                m.backward(&g_render, &mut g_x);
+            }
+            None => g_x.copy_from_slice(&g_render),
+        }
+        loss += regularizers(x, offsets, scale, &opts.weights, &mut g_x);
+        if !loss.is_finite() {
+            return Err(DrError::Diverged(iteration_base + it));
+        }
+        for (g, &i) in g_free.iter_mut().zip(&free) {
+            *g = g_x[i as usize];
+        }
+        if opts.reparam {
+            reparam.solve(&g_free, &mut g_u);
+            stats.cg_iterations += reparam.last_iterations;
+            stats.solves += 1;
+        } else {
+            g_u.copy_from_slice(&g_free);
+        }
+        adam.step(&g_u, opts.lr, &mut delta_u);
+        if opts.reparam {
+            reparam.solve(&delta_u, &mut delta_x);
+            stats.cg_iterations += reparam.last_iterations;
+            stats.solves += 1;
+        } else {
+            delta_x.copy_from_slice(&delta_u);
+        }
+        for (d, &i) in delta_x.iter().zip(&free) {
+            x[i as usize] += *d;
+        }
+        if let Some(h) = head {
+            if (it + 1) % opts.project_every.max(1) == 0 || it + 1 == iterations {
+                let clearance = opts.head_clearance;
+                free.par_iter().map(|&i| push_out_of_head(h, x[i as usize], clearance)).collect_into_vec(&mut g_free);
+                for (p, &i) in g_free.iter().zip(&free) {
+                    x[i as usize] = *p;
+                }
+            }
+        }
+        loss_curve.push((iteration_base + it, loss as f32));
+        progress.update(name, (it + 1) as f32 / iterations as f32, &format!("loss {loss:.5}"));
+    }
+    Ok(stats)
+}
+
+/// Optimizes guides and children against the targets (see the module doc). `guides` may be empty
+/// (then only the children are optimized), and so may `children` (then the guides are rendered
+/// themselves). `scalp` places the roots; `head` keeps the strands out of the head.
+pub fn optimize(
+    guides: &StrandSet,
+    children: &StrandSet,
+    targets: &DrTargets,
+    scalp: &Bvh,
+    head: Option<&Bvh>,
+    opts: &DrOptions,
+    progress: &dyn Progress,
+) -> Result<DrResult, DrError> {
+    if targets.views.is_empty() {
+        return Err(DrError::NoViews);
+    }
+    if guides.is_empty() && children.is_empty() {
+        return Err(DrError::Empty);
+    }
+    let snap = |s: &StrandSet| -> Vec<Vec3> {
+        let mut p = s.points().to_vec();
+        for &o in &s.offsets()[..s.num_strands()] {
+            if let Some(cp) = scalp.closest_point(p[o], 0.05) {
+                p[o] = cp.point;
+            }
+        }
+        p
+    };
+    let mut gx = snap(guides);
+    let mut cx = snap(children);
+    let mut loss_curve = Vec::with_capacity(opts.iterations_guides + opts.iterations_children);
+    let (mut cg, mut solves) = (0usize, 0usize);
+    let guide_stage = opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
+    if guide_stage {
+        let stats = if children.is_empty() {
+            run_stage(
+                StageInput {
+                    name: "dr guides",
+                    x: &mut gx,
+                    offsets: guides.offsets(),
+                    map: None,
+                    iterations: opts.iterations_guides,
+                    iteration_base: 0,
+                },
+                targets,
+                head,
+                opts,
+                progress,
+                &mut loss_curve,
+            )?
+        } else {
+            let g0 = StrandSet::new(gx.clone(), guides.counts().to_vec()).map_err(|_| DrError::Empty)?;
+            let c0 = StrandSet::new(cx.clone(), children.counts().to_vec()).map_err(|_| DrError::Empty)?;
+            let mut map = ChildMap::new(&g0, &c0, opts.child_k);
+            let stats = run_stage(
+                StageInput {
+                    name: "dr guides",
+                    x: &mut gx,
+                    offsets: guides.offsets(),
+                    map: Some(&mut map),
+                    iterations: opts.iterations_guides,
+                    iteration_base: 0,
+                },
+                targets,
+                head,
+                opts,
+                progress,
+                &mut loss_curve,
+            )?;
+            map.forward(&gx, &mut cx);
+            if let Some(h) = head {
+                let offs = children.offsets();
+                let is_root = |i: usize| offs.binary_search(&i).is_ok();
+                cx.par_iter_mut().enumerate().for_each(|(i, p)| {
+                    if !is_root(i) {
+                        *p = push_out_of_head(h, *p, opts.head_clearance);
+                    }
+                });
+            }
+            stats
+        };
+        cg += stats.cg_iterations;
+        solves += stats.solves;
+    }
+    if !children.is_empty() {
+        let stats = run_stage(
+            StageInput {
+                name: "dr children",
+                x: &mut cx,
+                offsets: children.offsets(),
+                map: None,
+                iterations: opts.iterations_children,
+                iteration_base: if guide_stage { opts.iterations_guides } else { 0 },
+            },
+            targets,
+            head,
+            opts,
+            progress,
+            &mut loss_curve,
+        )?;
+        cg += stats.cg_iterations;
+        solves += stats.solves;
+    }
+    let build = |p: Vec<Vec3>, s: &StrandSet| StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Diverged(0));
+    let g = build(gx, guides)?;
+    let c = build(cx, children)?;
+    Ok(DrResult {
+        guides: finalize(&g, scalp, head, opts.head_clearance, opts.equalize_at_end),
+        children: finalize(&c, scalp, head, opts.head_clearance, opts.equalize_at_end),
+        loss_curve,
+        mean_cg_iterations: if solves > 0 { cg as f32 / solves as f32 } else { 0.0 },
+    })
+}
+
+/// Makes strands simulation-ready: each root on the closest scalp point (within 5 cm), optionally
+/// every strand resampled to equal segment lengths (same point count), then every other point
+/// pushed at least `clearance` outside the head.
+pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance: f32, equalize: bool) -> StrandSet {
+    let mut out: Vec<Vec3> = strands.points().to_vec();
+    let offs = strands.offsets();
+    let mut parts: Vec<&mut [Vec3]> = Vec::with_capacity(strands.num_strands());
+    let mut rest = out.as_mut_slice();
+    for w in offs.windows(2) {
+        let (a, b) = rest.split_at_mut(w[1] - w[0]);
+        parts.push(a);
+        rest = b;
+    }
+    parts.into_par_iter().for_each(|s| {
+        if let Some(cp) = scalp.closest_point(s[0], 0.05) {
+            s[0] = cp.point;
+        }
+        if equalize {
+            resample_even(s);
+        }
+        if let Some(h) = head {
+            for p in s[1..].iter_mut() {
+                *p = push_out_of_head(h, *p, clearance);
+            }
+        }
+    });
+    StrandSet::new(out, strands.counts().to_vec()).unwrap_or_else(|_| strands.clone())
+}
+
+/// Resamples a polyline in place to the same number of points, equally spaced by arc length.
+fn resample_even(s: &mut [Vec3]) {
+    let n = s.len();
+    if n < 3 {
+        return;
+    }
+    let total: f32 = s.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+    if total <= 0.0 {
+        return;
+    }
+    let src: Vec<Vec3> = s.to_vec();
+    let step = total / (n - 1) as f32;
+    let (mut k, mut acc) = (0usize, 0.0f32);
+    for (i, p) in s.iter_mut().enumerate().skip(1).take(n - 2) {
+        let target = step * i as f32;
+        while k + 1 < n - 1 && acc + (src[k + 1] - src[k]).length() < target {
+            acc += (src[k + 1] - src[k]).length();
+            k += 1;
+        }
+        let l = (src[k + 1] - src[k]).length();
+        let t = if l > 0.0 { ((target - acc) / l).clamp(0.0, 1.0) } else { 0.0 };
+        *p = src[k].lerp(src[k + 1], t);
+    }
+    s[n - 1] = src[n - 1];
+}
