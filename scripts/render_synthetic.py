@@ -90,13 +90,16 @@ def parse_args(argv=None):
     p.add_argument(
         "--fusion-radius-mm",
         type=float,
-        help="hair radius for the fusion depth maps (default: the median distance between neighbouring roots)",
+        help="hair radius for the fusion depth maps (default: half the median distance between neighbouring roots)",
     )
     p.add_argument("--voxel-mm", type=float, default=2.0, help="TSDF voxel size for raw_mesh.ply")
     p.add_argument("--hairrecon-bin", help="the hairrecon binary (default: target/release/hairrecon, then PATH)")
     p.add_argument("--no-fuse", action="store_true", help="skip raw_mesh.ply (run hairrecon fuse-depth later)")
     p.add_argument("--no-blend", action="store_true", help="do not save scene.blend")
     p.add_argument("--only-view", type=int, help="render only this view (for pictures); implies --no-fuse")
+    p.add_argument(
+        "--filter-width", type=float, default=1.5, help="Cycles pixel filter width in pixels (Blackman-Harris)"
+    )
     p.add_argument("--threads", type=int, default=0, help="Cycles threads (0: all cores)")
     a = p.parse_args(argv)
     for k, v in PRESETS[a.preset].items():
@@ -169,6 +172,7 @@ def build_scene(bpy, a, head_path: Path, pts: np.ndarray, counts: np.ndarray):
     sc.cycles.use_adaptive_sampling = False
     sc.cycles.use_denoising = False
     sc.cycles.seed = a.seed
+    sc.cycles.filter_width = a.filter_width
     sc.cycles_curves.shape = a.curve_shape
     sc.render.threads_mode = "FIXED" if a.threads else "AUTO"
     if a.threads:
@@ -435,7 +439,7 @@ def main(argv=None):
     # Pass 2: depth of the hair volume for the raw mesh (ribbons through the centrelines, so the
     # depth is that of the strands themselves, not of a tube's surface).
     roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]
-    fr = a.fusion_radius_mm * 1e-3 if a.fusion_radius_mm else median_root_spacing(roots)
+    fr = a.fusion_radius_mm * 1e-3 if a.fusion_radius_mm else 0.5 * median_root_spacing(roots)
     fr = max(fr, a.radius_mm * 1e-3)
     t_fusion = time.time()
     if a.only_view is None:
@@ -507,17 +511,22 @@ def main(argv=None):
     print(f"render_synthetic: rendered in {t_render:.1f} s", flush=True)
 
     if a.no_fuse or a.only_view is not None:
-        print(f"render_synthetic: now run: hairrecon fuse-depth {out} --depth-dir fusion/depth", flush=True)
+        print(
+            f"render_synthetic: now run: hairrecon fuse-depth {out} --depth-dir fusion/depth "
+            f"--inset-mm {meta['fusion_radius_mm']:.4f}",
+            flush=True,
+        )
         return 0
     exe = find_hairrecon(a.hairrecon_bin)
     if exe is None:
         print(
             "render_synthetic: no hairrecon binary (build it: cargo build --release -p hairrecon-cli); "
-            f"then run: hairrecon fuse-depth {out} --depth-dir fusion/depth",
+            f"then run: hairrecon fuse-depth {out} --depth-dir fusion/depth --inset-mm {meta['fusion_radius_mm']:.4f}",
             file=sys.stderr,
         )
         return 2
     cmd = [exe, "fuse-depth", str(out), "--depth-dir", "fusion/depth", "--voxel-mm", str(a.voxel_mm)]
+    cmd += ["--inset-mm", f"{meta['fusion_radius_mm']:.4f}", "--check-capture"]
     print("render_synthetic: " + " ".join(cmd), flush=True)
     t0 = time.time()
     rc = subprocess.call(cmd)

@@ -4,8 +4,8 @@ Each check prints its figure (run pytest with -s to see them):
 
 - mask: ground-truth strand points that the head does not hide (ray cast against head.ply) fall on
   pixels with mask > 0 after a 1-pixel dilation, for at least 97% of points in every view;
-- orientation: gt/orientation agrees with the projected ground-truth tangents at the points that
-  the camera sees (|gt_depth - depth| < 1 mm at their pixel): mean undirected error under 3 degrees;
+- orientation: gt/orientation agrees with the projected ground-truth tangents visible in each pixel:
+  mean undirected error under 3 degrees where the visible strands agree among themselves;
 - raw mesh: at least 95% of the ground-truth points that are seen in two or more views (same depth
   test, against the fusion depth maps that raw_mesh.ply was made from) lie within 3 mm of it;
 - the capture loads with the Rust loader (``hairrecon`` Python module if built, else the CLI).
@@ -97,37 +97,70 @@ def test_mask_covers_unhidden_strand_points(test_capture):
     assert worst >= 0.97
 
 
+def _dense_gt(cap: Path, sub: int = 4):
+    """Ground-truth strands resampled with `sub` points per segment (linear), with tangents."""
+    p, c = hio.read_hair(cap / "gt" / "strands.hair")
+    p = p.astype(np.float64)
+    tan = hio.strand_tangents(p, c)
+    off = hio.strand_offsets(c)
+    last = np.zeros(len(p), bool)
+    last[off[1:] - 1] = True
+    a = np.flatnonzero(~last)
+    f = (np.arange(sub) / sub)[:, None, None]
+    pts = (p[a][None] * (1 - f) + p[a + 1][None] * f).reshape(-1, 3)
+    tans = (tan[a][None] * (1 - f) + tan[a + 1][None] * f).reshape(-1, 3)
+    return pts, tans
+
+
 def test_orientation_matches_projected_tangents(test_capture):
+    """Per hair pixel, the reference is the mean doubled angle of the ground-truth tangents that are
+    visible in the pixel (a z-buffer of the resampled strands on 3x3 sub-pixels), projected with the
+    camera's Jacobian. Pixels where that reference is ambiguous (strands crossing inside the pixel:
+    coherence of the visible tangents < 0.98) are left out; the figure for all pixels is printed."""
     cap = test_capture
-    pts, tan = _gt(cap)
-    errs = []
+    pts, tans = _dense_gt(cap)
+    ss = 3
+    errs, cohs = [], []
     for v, k, r, t in _views(cap):
         w, h = v["width"], v["height"]
         uv, pc = _project(k, r, t, pts)
-        ui, ok = _inside(uv, w, h)
-        depth = hio.read_exr(cap / v["gt_depth"])
-        depth = depth.get("Y", depth.get("R"))
         o = hio.read_exr(cap / v["gt_orientation"])
-        sel = np.flatnonzero(ok)
-        seen = np.abs(depth[ui[sel, 1], ui[sel, 0]] - pc[sel, 2]) < 1e-3
-        sel = sel[seen]
-        wgt = o["B"][ui[sel, 1], ui[sel, 0]]
-        sel = sel[wgt > 0]
-        # Projected tangent: J T with J the Jacobian of the pinhole projection.
-        x, y, z = pc[sel, 0], pc[sel, 1], pc[sel, 2]
-        tc = tan[sel] @ r.T
+        su = np.floor((uv + 0.5) * ss).astype(np.int64)
+        ok = (su[:, 0] >= 0) & (su[:, 0] < w * ss) & (su[:, 1] >= 0) & (su[:, 1] < h * ss) & (pc[:, 2] > 0)
+        idx = np.flatnonzero(ok)
+        sidx = su[idx, 1] * (w * ss) + su[idx, 0]
+        zbuf = np.full(w * h * ss * ss, np.inf)
+        np.minimum.at(zbuf, sidx, pc[idx, 2])
+        idx = idx[pc[idx, 2] <= zbuf[sidx] + 3e-4]
+        pix = (su[idx, 1] // ss) * w + su[idx, 0] // ss
+        x, y, z = pc[idx].T
+        tc = tans[idx] @ r.T
+        # Projected tangent J T (J: Jacobian of the pinhole projection), as a doubled angle.
         du = k[0, 0] * (tc[:, 0] * z - x * tc[:, 2]) / z**2
         dv = k[1, 1] * (tc[:, 1] * z - y * tc[:, 2]) / z**2
-        theta = np.arctan2(dv, du)
-        theta_map = 0.5 * np.arctan2(o["G"][ui[sel, 1], ui[sel, 0]], o["R"][ui[sel, 1], ui[sel, 0]])
-        d = np.abs(theta - theta_map) % np.pi
+        n2 = du * du + dv * dv + 1e-30
+        c2 = np.bincount(pix, (du * du - dv * dv) / n2, w * h)
+        s2 = np.bincount(pix, 2 * du * dv / n2, w * h)
+        n = np.bincount(pix, None, w * h)
+        has = (n > 0) & (o["B"].ravel() > 0)
+        ref = 0.5 * np.arctan2(s2[has], c2[has])
+        got = 0.5 * np.arctan2(o["G"].ravel()[has], o["R"].ravel()[has])
+        d = np.abs(ref - got) % np.pi
         e = np.degrees(np.minimum(d, np.pi - d))
-        print(f"orientation {v['name']}: {len(e)} seen points, mean error {e.mean():.2f} deg, median {np.median(e):.2f}")
+        coh = np.hypot(c2[has], s2[has]) / n[has]
+        print(f"orientation {v['name']}: {len(e)} hair pixels, mean error {e.mean():.2f} deg, median {np.median(e):.2f}")
         errs.append(e)
-    e = np.concatenate(errs)
-    print(f"orientation: {len(e)} points, mean undirected error {e.mean():.3f} deg, 90th pct {np.percentile(e, 90):.2f}")
-    assert len(e) > 1000
-    assert e.mean() < 3.0
+        cohs.append(coh)
+    e, coh = np.concatenate(errs), np.concatenate(cohs)
+    clear = coh >= 0.98
+    print(
+        f"orientation: all {len(e)} hair pixels: mean {e.mean():.2f} deg, median {np.median(e):.2f}; "
+        f"{clear.mean():.3f} of them unambiguous: mean {e[clear].mean():.3f} deg, median {np.median(e[clear]):.2f}, "
+        f"90th pct {np.percentile(e[clear], 90):.2f}"
+    )
+    assert clear.sum() > 1000
+    assert e[clear].mean() < 3.0
+    assert np.median(e) < 2.0
 
 
 def _seen_count(cap: Path, pts: np.ndarray, depth_dir: str | None, tol: float) -> np.ndarray:
@@ -197,20 +230,24 @@ def test_depth_is_planar_depth_of_the_surface(test_capture):
     assert np.median(dist) < 0.5e-3
 
 
-def test_capture_loads_with_the_rust_loader(test_capture):
+def test_capture_loads_with_the_rust_loader(test_capture, tmp_path):
     try:
         import hairrecon  # noqa: PLC0415
 
-        if hasattr(hairrecon, "load_capture"):
-            c = hairrecon.load_capture(str(test_capture))
-            print(f"loader: hairrecon.load_capture ok: {c!r}"[:200])
-            return
+        loader = getattr(hairrecon, "load_capture", None)
     except ImportError:
-        pass
+        loader = None
+    if loader is not None:
+        c = loader(str(test_capture))
+        print(f"loader: hairrecon.load_capture: {len(c['views'])} views")
+        assert len(c["views"]) == 16
+        return
+    # The CLI: fuse-depth --check-capture runs hairrecon_core::capture::Capture::load on the folder.
     from conftest import hairrecon_bin
 
     exe = hairrecon_bin()
-    r = subprocess.run([str(exe), "capture-info", str(test_capture)], capture_output=True, text=True)
-    if r.returncode != 0 and "unrecognized subcommand" in r.stderr:
-        pytest.skip("neither hairrecon.load_capture nor `hairrecon capture-info` is available yet")
+    cmd = [str(exe), "fuse-depth", str(test_capture), "--depth-dir", "fusion/depth", "--voxel-mm", "6"]
+    r = subprocess.run(cmd + ["--out", str(tmp_path / "m.ply"), "--check-capture"], capture_output=True, text=True)
+    print("loader:", r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "")
     assert r.returncode == 0, r.stderr
+    assert "the capture loads: 16 views" in r.stderr

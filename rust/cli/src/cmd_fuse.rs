@@ -29,12 +29,19 @@ pub struct FuseDepthArgs {
     /// Drop connected pieces with fewer triangles than this.
     #[arg(long, default_value_t = 200)]
     pub min_component: usize,
+    /// Move the surface inward by this many millimetres (for depth maps that show strands wider
+    /// than they are, like the synthetic renderer's fusion depth maps).
+    #[arg(long, default_value_t = 0.0)]
+    pub inset_mm: f32,
     /// Folder of depth maps named <view>.exr, relative to the capture (default: each view's gt_depth).
     #[arg(long)]
     pub depth_dir: Option<PathBuf>,
     /// Output mesh (.ply or .obj; default: the capture's raw_mesh path).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Afterwards, load the whole capture with the validating loader and fail if it does not load.
+    #[arg(long)]
+    pub check_capture: bool,
 }
 
 /// Shows a stage's progress on an indicatif bar (per mille).
@@ -64,6 +71,7 @@ pub fn run(args: FuseDepthArgs) -> CmdResult {
         truncation_voxels: args.truncation_voxels,
         smooth_iterations: args.smooth,
         min_component_triangles: args.min_component,
+        inset: args.inset_mm * 1e-3,
         ..FuseOptions::default()
     };
     let depth: Vec<_> = views.into_iter().map(|(_, v)| v).collect();
@@ -83,5 +91,9 @@ pub fn run(args: FuseDepthArgs) -> CmdResult {
         t0.elapsed().as_secs_f32(),
         out.display()
     );
+    if args.check_capture {
+        let c = hairrecon_core::capture::Capture::load(&args.capture)?;
+        eprintln!("fuse-depth: the capture loads: {} views, raw mesh {}", c.views.len(), c.raw_mesh.display());
+    }
     Ok(())
 }
