@@ -144,21 +144,24 @@ impl OrientedPoints {
         mask
     }
 
-    /// For every point of `query`, its match mask against this set (in parallel).
+    /// Counts, per threshold, the points of `query` matched by this set: `(directed, undirected)`.
+    /// Queries run in parallel, in Morton (Z-curve) order so that consecutive queries walk the same
+    /// part of the tree (the search is memory-bound; this order roughly halves its time).
     pub fn match_counts(&self, query: &OrientedPoints, thresholds: &[Threshold]) -> (Vec<u64>, Vec<u64>) {
         let cos: Vec<f32> = thresholds.iter().map(|t| t.angle_deg.to_radians().cos()).collect();
         let n = thresholds.len();
-        query
-            .points
-            .par_iter()
-            .zip(query.tangents.par_iter())
+        let order = morton_order(&query.points, thresholds.first().map_or(0.001, |t| t.dist));
+        order
+            .par_chunks(4096)
             .fold(
                 || (vec![0u64; n], vec![0u64; n]),
-                |(mut dir, mut und), (&p, &t)| {
-                    let m = self.match_mask(p, t, thresholds, &cos);
-                    for i in 0..n {
-                        dir[i] += ((m >> i) & 1) as u64;
-                        und[i] += ((m >> (MAX_THRESHOLDS + i)) & 1) as u64;
+                |(mut dir, mut und), chunk| {
+                    for &k in chunk {
+                        let m = self.match_mask(query.points[k as usize], query.tangents[k as usize], thresholds, &cos);
+                        for i in 0..n {
+                            dir[i] += ((m >> i) & 1) as u64;
+                            und[i] += ((m >> (MAX_THRESHOLDS + i)) & 1) as u64;
+                        }
                     }
                     (dir, und)
                 },
@@ -174,6 +177,31 @@ impl OrientedPoints {
                 },
             )
     }
+}
+
+/// Indices of `points` sorted along a Z-order curve over a grid of cell size `cell`.
+fn morton_order(points: &[Vec3], cell: f32) -> Vec<u32> {
+    let lo = points.iter().fold(Vec3::splat(f32::INFINITY), |a, &p| a.min(p));
+    let spread = |v: u64| -> u64 {
+        // Spread the low 21 bits of v so that there are two zero bits between each.
+        let mut x = v & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f00000000ffff;
+        x = (x | x << 16) & 0x1f0000ff0000ff;
+        x = (x | x << 8) & 0x100f00f00f00f00f;
+        x = (x | x << 4) & 0x10c30c30c30c30c3;
+        (x | x << 2) & 0x1249249249249249
+    };
+    let mut keyed: Vec<(u64, u32)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, &p)| {
+            let q = ((p - lo) / cell).max(Vec3::ZERO);
+            let k = spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2;
+            (k, i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
 }
 
 /// Why an evaluation could not run.
