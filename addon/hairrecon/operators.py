@@ -40,7 +40,9 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
 
     bl_idname = "hairrecon.reconstruct"
     bl_label = "Reconstruct Hair"
-    bl_options = {"REGISTER", "UNDO"}
+    # UNDO without REGISTER: an "Adjust Last Operation" redo would rerun the whole reconstruction
+    # synchronously, freezing Blender for minutes
+    bl_options = {"UNDO"}
 
     output_directory: StringProperty(
         name="Output Directory",
