@@ -10,7 +10,7 @@ the .blend (Hair panel) or the overrides below, and writes into DIR:
     scene.blend         the scene with the hair Curves objects added
     strands.hair        the strands (children), world space, root to tip
     guides.hair         the guide strands
-    summary.json        objects and strand counts
+    summary.json        objects, strand counts, root distances, stage times, metrics (with ground truth)
     render.png          with --render: a Cycles picture of the result from a scene camera
     capture/, result/   the capture folder written from the scene and the library's own output
 
@@ -71,7 +71,7 @@ class Failure(Exception):
 def ensure_addon(bpy):
     """Makes bpy.ops.hairrecon available: an enabled or installed extension, else the source tree."""
     if hasattr(bpy.types, "HAIRRECON_OT_reconstruct"):
-        return "already enabled"
+        return bpy.types.HAIRRECON_OT_reconstruct.__module__.rsplit(".", 1)[0]
     import addon_utils
 
     for mod in addon_utils.modules(refresh=True):
@@ -86,7 +86,7 @@ def ensure_addon(bpy):
     sys.modules["hairrecon_addon"] = mod
     spec.loader.exec_module(mod)
     mod.register()
-    return str(pkg)
+    return "hairrecon_addon"
 
 
 def apply_overrides(bpy, a):
@@ -233,8 +233,8 @@ def run(a) -> dict:
         bpy.ops.wm.open_mainfile(filepath=str(a.blend.resolve()))
     elif not bpy.data.filepath:
         raise Failure("no .blend given: pass the scene file (or run `blender -b scene.blend -P reconstruct.py -- ...`)")
-    source = ensure_addon(bpy)
-    print(f"hairrecon: add-on from {source}; scene {bpy.data.filepath}", flush=True)
+    package = ensure_addon(bpy)
+    print(f"hairrecon: add-on {package}; scene {bpy.data.filepath}", flush=True)
     apply_overrides(bpy, a)
     out = a.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -251,12 +251,17 @@ def run(a) -> dict:
         raise Failure("the reconstruction added no hair objects")
     import hairrecon as hr
 
-    summary = {"blend": bpy.data.filepath, "objects": [o.name for o in hair]}
+    last = getattr(sys.modules.get(f"{package}.operators"), "LAST_SUMMARY", {}) or {}
+    summary = {"blend": bpy.data.filepath, "objects": [o.name for o in hair],
+               "seconds": last.get("seconds"), "stage_times": last.get("stage_times", []),
+               "metrics": last.get("metrics", {})}
     for o in hair:
         key = "guides" if o.name.endswith("Guides") else "strands"
         path = out / f"{key}.hair"
         write_strands(hr, path, o)
         summary[key] = {"object": o.name, "count": len(o.data.curves), "points": len(o.data.points), "file": str(path)}
+        if key in last:
+            summary[key]["max_root_distance_m"] = last[key].get("max_root_distance_m")
     bpy.ops.wm.save_as_mainfile(filepath=str(out / "scene.blend"), copy=True)
     summary["saved"] = str(out / "scene.blend")
     if a.render is not None:

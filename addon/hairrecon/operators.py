@@ -21,6 +21,7 @@ from .core.capture import CaptureInputError, read_capture_json
 from .session import Session, UserError, describe, library
 
 _ACTIVE: dict = {}  # the running modal session, at most one
+LAST_SUMMARY: dict = {}  # the summary of the last successful reconstruction (for batch scripts)
 
 
 def _set_status(context, running: bool, fraction: float = 0.0, text: str = ""):
@@ -74,6 +75,8 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
                 self.report({"ERROR"}, f"Hair reconstruction failed: {e}")
             return {"CANCELLED"}
         self.report({"INFO"}, describe(summary))
+        LAST_SUMMARY.clear()
+        LAST_SUMMARY.update(summary)
         if bpy.app.background:
             print(json.dumps({"hairrecon_summary": summary}, default=str), flush=True)
         return {"FINISHED"}

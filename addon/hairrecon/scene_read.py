@@ -6,7 +6,6 @@ removed again before it returns, so reading never changes ``bpy.data``.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Optional
 

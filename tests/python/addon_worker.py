@@ -64,8 +64,6 @@ def task_camera(p):
         obj.scale = Vector(rng.uniform(0.5, 2.0, 3).tolist())  # non-uniform scale must not matter
         bpy.context.view_layer.update()
 
-        from hairrecon_core_camera import BlenderCamera  # noqa: F401  (module registered above)
-
         bc = cam_mod.BlenderCamera(
             name=obj.name, matrix_world=np.array(obj.matrix_world), lens=data.lens, sensor_width=data.sensor_width,
             sensor_height=data.sensor_height, sensor_fit=data.sensor_fit, shift_x=data.shift_x, shift_y=data.shift_y,

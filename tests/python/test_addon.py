@@ -353,6 +353,8 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     assert "hairrecon:" in proc.stdout and "%" in proc.stdout  # progress lines
     summary = json.loads((out / "summary.json").read_text())
     assert summary["strands"]["count"] == SMALL["children"] and summary["guides"]["count"] == SMALL["guides"]
+    assert summary["stage_times"] and all(t >= 0 for _, t in summary["stage_times"])
+    assert summary["strands"]["max_root_distance_m"] < 1e-3
     for f in ("scene.blend", "strands.hair", "guides.hair", "capture/capture.json"):
         assert (out / f).is_file(), f
 
