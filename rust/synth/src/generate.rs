@@ -131,7 +131,11 @@ impl HairGenerator {
             .map(|(i, root)| {
                 let mut rng = strand_rng(opts.seed, i as u64, 1);
                 let length = prm.length * (1.0 + prm.length_jitter * rng.random_range(-1.0f32..1.0));
-                let phase = rng.random_range(0.0..std::f32::consts::TAU);
+                // Waves line up across neighbouring clumps when the phase follows the root's height
+                // (a strand reaches a given height after about its root's height of arc length).
+                let spatial = -std::f32::consts::TAU * root.position.z / prm.curl_period;
+                let phase = spatial * prm.wave_coherence
+                    + rng.random_range(0.0..std::f32::consts::TAU) * (1.0 - prm.wave_coherence);
                 let turns = length / prm.curl_period;
                 let (guide, _) = self.strand(prm, &root, length, phase, turns, n, 0.6, &mut rng);
                 Clump { root, length, phase, turns, guide }

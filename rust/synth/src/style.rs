@@ -48,6 +48,7 @@ impl Style {
             curl_radius: [0.0, 0.0],
             curl_period: 0.05,
             curl_ramp: 0.05,
+            wave_coherence: 0.0,
             clump_size: 40.0,
             clump_strength: 0.35,
             frizz: 0.03,
@@ -62,6 +63,7 @@ impl Style {
                 curl_radius: [0.014, 0.004],
                 curl_period: 0.09,
                 curl_ramp: 0.08,
+                wave_coherence: 0.85,
                 clump_strength: 0.6,
                 frizz: 0.02,
                 volume: 0.014,
@@ -154,6 +156,9 @@ pub struct StyleParams {
     pub curl_period: f32,
     /// Arc length from the root over which curls grow to full radius.
     pub curl_ramp: f32,
+    /// 0: each clump's curls start at a random phase; 1: the phase follows the root's height, so
+    /// that waves line up across the head.
+    pub wave_coherence: f32,
     /// Mean number of strands per clump.
     pub clump_size: f32,
     /// How far the tips are pulled to their clump's guide (0: not at all, 1: onto it).
@@ -193,6 +198,7 @@ impl StyleParams {
             ("curl_radius", self.curl_radius[0]),
             ("curl_radius", self.curl_radius[1]),
             ("clump_strength", self.clump_strength),
+            ("wave_coherence", self.wave_coherence),
             ("frizz", self.frizz),
             ("volume", self.volume),
         ];
@@ -201,8 +207,10 @@ impl StyleParams {
                 return Err(SynthError::Param(format!("{name} must be zero or positive and finite, got {v}")));
             }
         }
-        if self.length_jitter >= 1.0 || self.clump_strength > 1.0 {
-            return Err(SynthError::Param("length_jitter must be below 1 and clump_strength at most 1".into()));
+        if self.length_jitter >= 1.0 || self.clump_strength > 1.0 || self.wave_coherence > 1.0 {
+            return Err(SynthError::Param(
+                "length_jitter must be below 1, clump_strength and wave_coherence at most 1".into(),
+            ));
         }
         Ok(())
     }
