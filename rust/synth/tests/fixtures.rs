@@ -67,3 +67,53 @@ fn scalp_covers_top_sides_and_back_only() {
     let uv = scalp.uvs.as_ref().unwrap();
     assert!(uv.iter().all(|t| t.x > -1e-6 && t.x < 1.0 + 1e-6 && t.y > -1e-6 && t.y < 1.0 + 1e-6));
 }
+
+#[test]
+fn growth_field_and_roots_on_the_fixture_scalp() {
+    use hairrecon_core::scalp::Scalp;
+    let scalp = Scalp::new(read_mesh(fixtures_dir().join("scalp.ply")).unwrap()).unwrap();
+    let w = scalp.field().whorl;
+    // The whorl: near the top, behind the middle.
+    println!("whorl {w}");
+    assert!(w.z > 0.14 && w.y > 0.02 && w.x.abs() < 0.03, "whorl {w}");
+    let n = 5000;
+    let roots = scalp.sample_roots(n, 5).unwrap();
+    let (mut sides, mut back, mut front) = (0, 0, 0);
+    for r in &roots {
+        let s = r.direction;
+        assert!(s.dot(r.normal) >= 0.49, "S·n = {} at {}", s.dot(r.normal), r.position);
+        assert!(r.normal.dot(r.position - Vec3::new(0.0, 0.0, 0.03)) > 0.0, "normal points in at {}", r.position);
+        let p = r.position;
+        if p.x.abs() > 0.06 && p.z < 0.08 {
+            sides += 1;
+            assert!(s.z < -0.3, "side S {s} at {p}");
+        }
+        if p.y > 0.07 && p.z < 0.08 {
+            back += 1;
+            assert!(s.z < -0.3, "back S {s} at {p}");
+        }
+        if p.y < -0.07 {
+            front += 1;
+            assert!(s.y < -0.2, "front S {s} at {p}");
+        }
+    }
+    assert!(sides > 100 && back > 100 && front > 50, "{sides} {back} {front}");
+    // Blue noise: the closest pair is a good share of the hexagonal spacing 2 r_max.
+    let spacing = 2.0 * scalp.poisson_radius(n);
+    let mut min = f32::INFINITY;
+    let mut sum = 0.0;
+    for (i, a) in roots.iter().enumerate() {
+        let d = roots
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, b)| a.position.distance(b.position))
+            .fold(f32::INFINITY, f32::min);
+        min = min.min(d);
+        sum += d;
+    }
+    let mean = sum / n as f32;
+    println!("spacing {spacing:.5} m: closest pair {:.3}, mean nearest {:.3} of it", min / spacing, mean / spacing);
+    // Measured: 0.699 and 0.796 (seed 5).
+    assert!(min > 0.6 * spacing && mean > 0.75 * spacing, "min {min} mean {mean} spacing {spacing}");
+}
