@@ -223,6 +223,9 @@ pub struct ToyLettersArgs {
     /// Adam learning rate (metres per step on each segment vector).
     #[arg(long, default_value_t = 2e-5)]
     lr: f32,
+    /// Do not average gradients over neighbouring strands (see `hairrecon_raster::letters`).
+    #[arg(long)]
+    no_neighbours: bool,
     /// Picture of target, start and end (front view).
     #[arg(long, default_value = "docs/images/letters.png")]
     out: PathBuf,
@@ -242,6 +245,7 @@ pub fn run_letters(a: ToyLettersArgs) -> CmdResult {
         segments: a.segments,
         iters: a.iters,
         learning_rate: a.lr,
+        neighbour_mixing: !a.no_neighbours,
         ..LettersConfig::default()
     };
     let pb = progress::bar(a.iters as u64, "toy-letters");

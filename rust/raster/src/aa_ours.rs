@@ -123,16 +123,14 @@ fn near_pass(screen: &Screen, buf: &Buffers, edges: &mut [u32], vals: &mut [f32]
                     for y in r[1].max(row0)..=r[3].min(row1 - 1) {
                         for x in r[0]..=r[2] {
                             let i = y * w + x;
-                            if ids[i] == si + 1 {
-                                continue;
-                            }
                             let c = Vec2::new(x as f32, y as f32);
-                            if p.contains(c) {
+                            // Cheap tests first: own pixel, occluded, covered.
+                            if ids[i] == si + 1 || p.depth_at(c) >= depth[i] || p.contains(c) {
                                 continue;
                             }
                             let (dist, edge) = polygon_distance(p, c);
                             let slot = (i - row0 * w) * SLOTS + 8;
-                            if dist >= 1.0 || dist >= vals[slot] || p.depth_at(c) >= depth[i] {
+                            if dist >= 1.0 || dist >= vals[slot] {
                                 continue;
                             }
                             let touches = N8.iter().any(|&(dx, dy)| {

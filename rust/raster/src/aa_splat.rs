@@ -136,3 +136,103 @@ pub(crate) fn backward(
         .collect();
     crate::antialias::scatter_corners(parts, grads);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::antialias::{antialias_backward, antialias_forward, AaMethod};
+    use crate::rasterize::rasterize;
+    use crate::screen::{RasterSettings, SegmentShape, Width};
+
+    /// The splat with the samples' local coordinates frozen and their positions re-expressed from
+    /// (possibly moved) corners: the function whose derivative the backward pass computes.
+    fn frozen(buf: &Buffers, samples: &[(usize, [f32; 4])], corners: &[Vec2; 4], wts: &[f32]) -> f64 {
+        let a = &buf.attrs;
+        let (w, h, nch) = (a.width as i32, a.height as i32, a.channels);
+        let k = |d: Vec2| (-d.length_squared() / (2.0 * SIGMA * SIGMA)).exp();
+        let mut q: Vec<Vec2> = (0..w * h).map(|i| Vec2::new((i % w) as f32, (i / w) as f32)).collect();
+        for (i, b) in samples {
+            q[*i] = corners[0] * b[0] + corners[1] * b[1] + corners[2] * b[2] + corners[3] * b[3];
+        }
+        let mut l = 0.0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let (mut num, mut den) = ([0.0f32; 3], 0.0f32);
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let (sx, sy) = (x + dx, y + dy);
+                        if sx < 0 || sy < 0 || sx >= w || sy >= h {
+                            continue;
+                        }
+                        let j = (sy * w + sx) as usize;
+                        let kv = k(Vec2::new(x as f32, y as f32) - q[j]);
+                        den += kv;
+                        for c in 0..3 {
+                            num[c] += kv * a.data[j * nch + c];
+                        }
+                    }
+                }
+                let i = (y * w + x) as usize;
+                for c in 0..3 {
+                    l += (wts[i * nch + c] * num[c] / den) as f64;
+                }
+            }
+        }
+        l
+    }
+
+    #[test]
+    fn splat_gradient_matches_differences_with_frozen_samples() {
+        let s = Screen::from_pixels(
+            16,
+            14,
+            &[Vec2::new(2.3, 3.1), Vec2::new(12.6, 9.4)],
+            None,
+            &[[0, 1]],
+            RasterSettings { width: Width::Pixels(1.7), shape: SegmentShape::Quad, direction_3d: false },
+        )
+        .unwrap();
+        let mut buf = Buffers::new();
+        rasterize(&s, &mut buf);
+        let mut out = AaOutput::new(AaMethod::Splat);
+        antialias_forward(&s, &buf, &mut out);
+        let wts: Vec<f32> = (0..out.image.data.len()).map(|i| ((i * 7919) % 200) as f32 / 100.0 - 1.0).collect();
+        let d = Image { width: 16, height: 14, channels: 3, data: wts.clone() };
+        let mut d_attrs = Image::default();
+        let mut g = SegmentGrads::default();
+        g.reset(1);
+        antialias_backward(&s, &buf, &out, &d, &mut d_attrs, &mut g).unwrap();
+        let p = s.prims()[0];
+        let mut samples = Vec::new();
+        for (i, &id) in buf.ids.iter().enumerate() {
+            if id != 0 {
+                let c = Vec2::new((i % 16) as f32, (i / 16) as f32);
+                let (t, sv) = p.local(c);
+                let sg = sv / (p.hw0 + (p.hw1 - p.hw0) * t);
+                let b = [
+                    (1.0 - t) * 0.5 * (1.0 + sg),
+                    t * 0.5 * (1.0 + sg),
+                    t * 0.5 * (1.0 - sg),
+                    (1.0 - t) * 0.5 * (1.0 - sg),
+                ];
+                samples.push((i, b));
+            }
+        }
+        assert!(samples.len() > 5);
+        let h = 1e-2f32;
+        for k in 0..4 {
+            for axis in 0..2 {
+                let (mut cp, mut cm) = (p.corners, p.corners);
+                cp[k][axis] += h;
+                cm[k][axis] -= h;
+                let fd =
+                    ((frozen(&buf, &samples, &cp, &wts) - frozen(&buf, &samples, &cm, &wts)) / (2.0 * h as f64)) as f32;
+                let an = g.corners[0][k][axis];
+                assert!(
+                    (an - fd).abs() <= 0.02 * an.abs().max(fd.abs()) + 1e-3,
+                    "corner {k} axis {axis}: {an} vs {fd}"
+                );
+            }
+        }
+    }
+}

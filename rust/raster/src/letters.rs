@@ -13,8 +13,11 @@
 //! second differences). Simplifications against the paper, on purpose: the optimized variables are
 //! the segment vectors of each strand (a point is its root plus the sum of the segment vectors
 //! before it), a cumulative reparameterization that lets a pull at the tip move the whole strand, in
-//! place of Nicolet et al.'s `(I + λL)` with the kNN Laplacian N; all letters share one optimization
-//! (they do not interact: no loss couples them).
+//! place of Nicolet et al.'s `(I + λL)` along the strand; and, in place of the kNN Laplacian N, the
+//! gradient of each strand's segment vectors is averaged with those of its 10 nearest strands of the
+//! same bundle (neighbours found at 50% of the length, as in the supplement), so that strands hidden
+//! behind others (which get no gradient from the images) grow with their neighbours. All letters
+//! share one optimization (no loss couples them).
 
 use glam::{Vec2, Vec3};
 use hairrecon_core::Camera;
@@ -39,7 +42,11 @@ pub struct LettersConfig {
     pub length_weight: f32,
     pub curvature_weight: f32,
     pub seed: u64,
+    /// Average each strand's gradient with its 10 nearest strands' (see the module doc).
+    pub neighbour_mixing: bool,
 }
+
+const KNN: usize = 10;
 
 impl Default for LettersConfig {
     fn default() -> Self {
@@ -54,6 +61,7 @@ impl Default for LettersConfig {
             length_weight: 1e3,
             curvature_weight: 1e3,
             seed: 1,
+            neighbour_mixing: true,
         }
     }
 }
@@ -165,6 +173,7 @@ pub fn run_letters(cfg: &LettersConfig, mut on_step: impl FnMut(usize)) -> Resul
     let word_units = (letters.len() as f32 - 1.0) * 1.2 + 1.0;
     let word_w = word_units * scale;
     let mut gt: Vec<Vec3> = Vec::new();
+    let mut bundle_starts = Vec::new();
     for (li, &c) in letters.iter().enumerate() {
         let bundles = letter_bundles(c).ok_or(RasterError::BadWidth(f32::NAN)).map_err(|_| RasterError::Write {
             path: cfg.word.clone(),
@@ -176,6 +185,7 @@ pub fn run_letters(cfg: &LettersConfig, mut on_step: impl FnMut(usize)) -> Resul
                 .map(|p| Vec3::new((li as f32 * 1.2 + p.x - 0.5 * word_units) * scale, 0.0, (p.y - 0.5) * scale))
                 .collect();
             let base = resample(&path, n, 1.0);
+            bundle_starts.push(gt.len() / np);
             for _ in 0..cfg.strands {
                 let mut o = Vec3::new(rnd(), rnd(), rnd()) * 2.0;
                 while o.length() > 1.0 {
@@ -190,6 +200,24 @@ pub fn run_letters(cfg: &LettersConfig, mut on_step: impl FnMut(usize)) -> Resul
     for s in 0..ns {
         for i in 0..n {
             segs.push([(s * np + i) as u32, (s * np + i + 1) as u32]);
+        }
+    }
+    // Neighbours (k = 10 within a bundle, by the points at 50% of the length, as the supplement does
+    // for its Laplacian N).
+    bundle_starts.push(ns);
+    let mut nbrs: Vec<[u32; KNN]> = vec![[0; KNN]; ns];
+    for b in bundle_starts.windows(2) {
+        for s in b[0]..b[1] {
+            let ps = gt[s * np + n / 2];
+            let mut best = [(f32::INFINITY, s as u32); KNN];
+            for o in b[0]..b[1] {
+                let d = (gt[o * np + n / 2] - ps).length_squared();
+                if o != s && d < best[KNN - 1].0 {
+                    best[KNN - 1] = (d, o as u32);
+                    best.sort_by(|x, y| x.0.total_cmp(&y.0));
+                }
+            }
+            nbrs[s] = best.map(|x| x.1);
         }
     }
     // Views.
@@ -259,6 +287,7 @@ pub fn run_letters(cfg: &LettersConfig, mut on_step: impl FnMut(usize)) -> Resul
     let mut adam = Adam { m: vec![Vec3::ZERO; d.len()], v: vec![Vec3::ZERO; d.len()], t: 0 };
     let mut gp = vec![Vec3::ZERO; pts.len()];
     let mut gd = vec![Vec3::ZERO; d.len()];
+    let mut gm = vec![Vec3::ZERO; d.len()];
     let mut dimg = Image::default();
     let mut loss_curve = Vec::with_capacity(cfg.iters);
     for it in 0..cfg.iters {
@@ -314,7 +343,22 @@ pub fn run_letters(cfg: &LettersConfig, mut on_step: impl FnMut(usize)) -> Resul
                 gd[s * n + i] = acc;
             }
         }
-        adam.step(&mut d, &gd, cfg.learning_rate);
+        // Neighbour coupling: each strand's gradient is averaged with its k neighbours', so that a
+        // hidden strand moves with the visible strands around it.
+        if cfg.neighbour_mixing {
+            for s in 0..ns {
+                for i in 0..n {
+                    let mut acc = gd[s * n + i];
+                    for &o in &nbrs[s] {
+                        acc += gd[o as usize * n + i];
+                    }
+                    gm[s * n + i] = acc / (KNN + 1) as f32;
+                }
+            }
+            adam.step(&mut d, &gm, cfg.learning_rate);
+        } else {
+            adam.step(&mut d, &gd, cfg.learning_rate);
+        }
         build(&d, &mut pts);
         on_step(it);
     }

@@ -111,7 +111,7 @@ fn new_pixmap(w: u32, h: u32, path: &std::path::Path) -> Result<Pixmap, RasterEr
         .ok_or_else(|| RasterError::Write { path: path.display().to_string(), message: format!("bad size {w}x{h}") })
 }
 
-/// Writes loss curves (`loss / first loss`, linear axis from 0 to 1.2) as panels side by side.
+/// Writes loss curves (`loss / first loss`, linear axis from 0 to 2) as panels side by side.
 pub fn write_loss_plot(path: &std::path::Path, panels: &[LossPanel], y_label: &str) -> Result<(), RasterError> {
     let (pw, ph) = (420.0f32, 300.0f32);
     let (ml, mt, mr, mb) = (70.0f32, 40.0f32, 20.0f32, 60.0f32);
@@ -126,14 +126,14 @@ pub fn write_loss_plot(path: &std::path::Path, panels: &[LossPanel], y_label: &s
     let mut grid = Paint::default();
     grid.set_color_rgba8(210, 210, 210, 255);
     let thin = Stroke { width: 1.0, ..Stroke::default() };
-    let ymax = 1.2f32;
+    let ymax = 2.0f32;
     for (pi, panel) in panels.iter().enumerate() {
         let ox = pi as f32 * (pw + ml + mr) + ml;
         let oy = mt;
         let iters = panel.curves.iter().map(|c| c.2.len()).max().unwrap_or(1).saturating_sub(1).max(1);
         // Grid and ticks.
-        for k in 0..=6 {
-            let v = k as f32 * 0.2;
+        for k in 0..=5 {
+            let v = k as f32 * 0.4;
             let y = oy + ph * (1.0 - v / ymax);
             let mut pb = PathBuilder::new();
             pb.move_to(ox, y);
