@@ -4,9 +4,12 @@
 //! Out: guide and child [`StrandSet`]s, root first, saved as `guides.hair` and `strands.hair`.
 //!
 //! Follows Dr.Hair's strand initialization (`docs/method.md` §3). A guide starts at its root along
-//! S(p_s) and follows the unit field by midpoint (RK2) steps of `step`; the field is read by
+//! S(p_s) and follows the unit field by midpoint (RK2) steps of `step` (going straight on through
+//! gaps of up to `max_gap` where the field is missing); the field is read by
 //! trilinear interpolation and a step never turns back on the last one (the field's sign is kept
-//! continuous). Growth stops when the strand leaves the hair volume (more than `outer_margin`
+//! continuous). At the outer surface (the raw mesh) a step that leaves it is projected back onto
+//! it; growth ends there when the flow points out of the surface (cosine above `exit_cos`). Growth
+//! also stops when the strand leaves the hair volume (more than `outer_margin`
 //! outside the raw mesh, or into a voxel that is not hair), when the field vanishes, or at `max_length`. Points that enter the head
 //! are pushed back out along the gradient of its distance. A child takes its `k` nearest guide
 //! roots with inverse-square-distance weights and follows their mean segment vectors step by step
@@ -37,12 +40,33 @@ pub struct GrowParams {
     pub head_clearance: f32,
     /// Guides per child.
     pub k: usize,
+    /// Growth goes straight on through up to this length of non-hair voxels, metres.
+    pub max_gap: f32,
+    /// At the outer surface, growth ends when the flow points out of it with a cosine above this.
+    pub exit_cos: f32,
 }
 
 impl Default for GrowParams {
     fn default() -> Self {
-        Self { step: 0.002, max_length: 0.6, outer_margin: 0.003, head_clearance: 0.001, k: 4 }
+        Self {
+            step: 0.002,
+            max_length: 0.6,
+            outer_margin: 0.003,
+            head_clearance: 0.001,
+            k: 4,
+            max_gap: 0.008,
+            exit_cos: 0.6,
+        }
     }
+}
+
+/// Unit gradient of a per-voxel distance at `p` (central differences, half a voxel apart).
+fn gradient(flow: &FlowField, values: &[f32], p: Vec3) -> Vec3 {
+    let h = 0.5 * flow.grid.voxel;
+    let d = flow.grid.trilinear(values, p).unwrap_or(0.0);
+    let g = |a: Vec3| flow.grid.trilinear(values, p + a).unwrap_or(d);
+    Vec3::new(g(Vec3::X * h) - g(-Vec3::X * h), g(Vec3::Y * h) - g(-Vec3::Y * h), g(Vec3::Z * h) - g(-Vec3::Z * h))
+        .normalize_or_zero()
 }
 
 fn push_out(flow: &FlowField, p: Vec3, clearance: f32) -> Vec3 {
@@ -58,12 +82,38 @@ fn push_out(flow: &FlowField, p: Vec3, clearance: f32) -> Vec3 {
     p + grad * (clearance - d)
 }
 
+/// Why a guide stopped growing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stop {
+    /// More than `outer_margin` outside the raw mesh.
+    Outside,
+    /// In voxels that are not hair, or where the field vanishes, for longer than `max_gap`.
+    NotHair,
+    /// Out of the grid.
+    Grid,
+    MaxLength,
+}
+
+/// How the guides stopped.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GrowStats {
+    pub outside: u64,
+    pub not_hair: u64,
+    pub grid: u64,
+    pub max_length: u64,
+    pub mean_length: f64,
+}
+
 /// Grows one guide from `root` with start direction `start`.
-pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) -> Vec<Vec3> {
+pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) -> (Vec<Vec3>, Stop) {
     let mut pts = vec![root];
     let mut p = root;
     let mut prev = start.normalize_or(Vec3::Z);
     let dir_at = |q: Vec3, prev: Vec3| -> Option<Vec3> {
+        let v = flow.grid.voxel_of(q)?;
+        if flow.label[v] == 0 {
+            return None;
+        }
         let f = flow.grid.trilinear(&flow.field, q)?;
         if f.length_squared() < 1e-6 {
             return None;
@@ -72,32 +122,86 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         Some(if f.dot(prev) < 0.0 { -f } else { f })
     };
     let max_steps = (params.max_length / params.step).ceil() as usize;
+    let max_gap = (params.max_gap / params.step).ceil() as usize;
+    // Points since the field was last seen (dropped if growth ends inside a gap).
+    let mut gap = 0usize;
+    let mut stop = Stop::MaxLength;
     for s in 0..max_steps {
         // Leave the root along S for the first steps, blending into the field.
         let blend = if s < 3 { 0.5 } else { 0.0 };
-        let Some(d1) = dir_at(p, prev) else { break };
-        let d1 = (d1 * (1.0 - blend) + prev * blend).normalize();
-        let mid = p + d1 * (0.5 * params.step);
-        let Some(d2) = dir_at(mid, d1) else { break };
-        let d2 = (d2 * (1.0 - blend) + prev * blend).normalize();
-        let mut q = p + d2 * params.step;
-        q = push_out(flow, q, params.head_clearance);
-        let Some(so) = flow.grid.trilinear(&flow.sd_outer, q) else { break };
-        if so > params.outer_margin || flow.grid.voxel_of(q).is_none_or(|v| flow.label[v] == 0) {
+        let d = match dir_at(p, prev) {
+            Some(d1) => {
+                let d1 = (d1 * (1.0 - blend) + prev * blend).normalize();
+                let mid = p + d1 * (0.5 * params.step);
+                dir_at(mid, d1).map(|d2| (d2 * (1.0 - blend) + prev * blend).normalize())
+            }
+            None => None,
+        };
+        let d = match d {
+            Some(d) => {
+                gap = 0;
+                d
+            }
+            None => {
+                gap += 1;
+                if gap > max_gap {
+                    stop = Stop::NotHair;
+                    break;
+                }
+                prev
+            }
+        };
+        // At the outer surface, the flow may slide along it but ends where it points out of it.
+        let Some(so) = flow.grid.trilinear(&flow.sd_outer, p) else {
+            stop = Stop::Grid;
+            break;
+        };
+        let mut d = d;
+        let mut nrm = Vec3::ZERO;
+        if so > -0.5 * flow.grid.voxel {
+            nrm = gradient(flow, &flow.sd_outer, p);
+            let c = d.dot(nrm);
+            if c > params.exit_cos {
+                stop = Stop::Outside;
+                break;
+            }
+            if c > 0.0 {
+                d = (d - nrm * c).normalize_or(d);
+            }
+        }
+        let mut q = p + d * params.step;
+        if nrm != Vec3::ZERO {
+            if let Some(sq) = flow.grid.trilinear(&flow.sd_outer, q) {
+                if sq > 0.0 {
+                    q -= nrm * sq;
+                }
+            }
+        }
+        let q = push_out(flow, q, params.head_clearance);
+        let Some(so) = flow.grid.trilinear(&flow.sd_outer, q) else {
+            stop = Stop::Grid;
+            break;
+        };
+        if so > params.outer_margin {
+            stop = Stop::Outside;
             break;
         }
         let seg = q - p;
         if seg.length_squared() < 1e-12 {
+            stop = Stop::NotHair;
             break;
         }
         prev = seg.normalize();
         p = q;
         pts.push(p);
     }
+    if stop != Stop::MaxLength && gap > 0 {
+        pts.truncate(pts.len().saturating_sub(gap).max(1));
+    }
     if pts.len() < 2 {
         pts.push(root + start.normalize_or(Vec3::Z) * params.step);
     }
-    pts
+    (pts, stop)
 }
 
 /// Grows one guide per root, in parallel (cancellable between chunks).
@@ -106,21 +210,33 @@ pub fn grow_guides(
     roots: &Roots,
     params: &GrowParams,
     progress: &dyn Progress,
-) -> Result<StrandSet, Cancelled> {
+) -> Result<(StrandSet, GrowStats), Cancelled> {
     let mut points = Vec::new();
     let mut counts = Vec::new();
+    let mut stats = GrowStats::default();
     let chunk = 256;
     for (ci, c) in (0..roots.len()).collect::<Vec<_>>().chunks(chunk).enumerate() {
         progress.check()?;
         progress.update("init", (ci * chunk) as f32 / roots.len().max(1) as f32, "growing guides");
-        let grown: Vec<Vec<Vec3>> =
+        let grown: Vec<(Vec<Vec3>, Stop)> =
             c.par_iter().map(|&i| grow_one(flow, roots.positions[i], roots.growth[i], params)).collect();
-        for g in grown {
+        for (g, stop) in grown {
+            match stop {
+                Stop::Outside => stats.outside += 1,
+                Stop::NotHair => stats.not_hair += 1,
+                Stop::Grid => stats.grid += 1,
+                Stop::MaxLength => stats.max_length += 1,
+            }
             counts.push(g.len() as u32);
             points.extend(g);
         }
     }
-    Ok(StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty()))
+    let set = StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty());
+    if !set.is_empty() {
+        stats.mean_length =
+            (0..set.num_strands()).map(|i| set.strand_length(i) as f64).sum::<f64>() / set.num_strands() as f64;
+    }
+    Ok((set, stats))
 }
 
 /// Interpolates children from guides (see the module doc).

@@ -6,8 +6,9 @@
 //! outer and inner surfaces that growing needs; saved as `flow.bin` and reloaded from there.
 //!
 //! Follows Dr.Hair's strand initialization (`docs/method.md` §3): the hair volume is the voxels
-//! inside the raw mesh (up to `outer_margin` outside it), outside the head and within
-//! `max_point_dist` of a directed point (so the face, the neck and bald scalp are not hair); Dirichlet conditions
+//! inside the raw mesh (up to `outer_margin` outside it, at most `band` inside it), outside the head,
+//! and within `max_point_dist` of a directed point or `scalp_dist` of the scalp (so the face and
+//! the neck are not hair); Dirichlet conditions
 //! are the confidence-weighted mean direction of the directed points in a voxel, and S(p_s) at the
 //! voxels within one voxel of the scalp; every other voxel of the volume satisfies the discrete
 //! Laplace equation (6-neighbour graph Laplacian, zero flux across the volume's boundary). The three
@@ -103,6 +104,10 @@ pub struct LaplaceParams {
     /// Voxels farther than this from every directed point are not hair (face, neck, bald scalp),
     /// metres.
     pub max_point_dist: f32,
+    /// Voxels this close to the scalp are hair even far from the points, metres.
+    pub scalp_dist: f32,
+    /// Voxels farther than this from the raw mesh are never hair, metres.
+    pub band: f32,
     pub max_iterations: usize,
     /// Relative residual at which CG stops.
     pub tolerance: f32,
@@ -110,7 +115,15 @@ pub struct LaplaceParams {
 
 impl Default for LaplaceParams {
     fn default() -> Self {
-        Self { voxel: 0.004, outer_margin: 0.004, max_point_dist: 0.015, max_iterations: 400, tolerance: 1e-4 }
+        Self {
+            voxel: 0.004,
+            outer_margin: 0.004,
+            max_point_dist: 0.015,
+            scalp_dist: 0.012,
+            band: 0.04,
+            max_iterations: 400,
+            tolerance: 1e-4,
+        }
     }
 }
 
@@ -164,7 +177,8 @@ pub fn solve_flow(
     let slab = dims[0] * dims[1];
     let mut sd_outer = vec![0.0f32; n];
     let mut sd_inner = vec![0.0f32; n];
-    let far = 4.0 * params.voxel.max(0.01);
+    // Only voxels within `band` of the raw mesh can be hair; the rest are marked far outside.
+    let band = params.band.max(2.0 * params.voxel);
     for k in 0..dims[2] {
         progress.check()?;
         progress.update("init", 0.4 * k as f32 / dims[2] as f32, "distances");
@@ -172,23 +186,17 @@ pub fn solve_flow(
         sd_outer[r.clone()].par_iter_mut().zip(sd_inner[r.clone()].par_iter_mut()).enumerate().for_each(
             |(o, (so, si))| {
                 let p = grid.centre(k * slab + o);
-                *so = raw.signed_distance(p, f32::INFINITY).unwrap_or(f32::INFINITY);
-                // Far from the head the sign is all that matters: clamp the search.
-                *si = match inner.signed_distance(p, far) {
-                    Some(d) => d,
-                    None => {
-                        let s = inner.signed_distance(p, f32::INFINITY).unwrap_or(1.0);
-                        if s < 0.0 {
-                            -far
-                        } else {
-                            far
-                        }
-                    }
+                *so = raw.signed_distance(p, band).unwrap_or(band);
+                *si = if *so <= params.outer_margin {
+                    inner.signed_distance(p, f32::INFINITY).unwrap_or(band)
+                } else {
+                    // Not hair; the value only serves growing's push-out, far from the head.
+                    inner.signed_distance(p, band).unwrap_or(band)
                 };
             },
         );
     }
-    // Labels and Dirichlet values.
+    // Labels: inside the raw mesh, outside the head, near the seen hair or the scalp.
     let mut label = vec![0u8; n];
     for i in 0..n {
         if sd_outer[i] <= params.outer_margin && sd_inner[i] >= -0.5 * params.voxel {
@@ -197,12 +205,16 @@ pub fn solve_flow(
     }
     progress.check()?;
     let index = PointIndex::new(points.positions.clone(), points.directions.clone());
-    let far_from_points: Vec<usize> = (0..n)
+    let not_hair: Vec<usize> = (0..n)
         .into_par_iter()
         .filter(|&i| label[i] == 1)
-        .filter(|&i| index.nearest(grid.centre(i), 1).first().is_none_or(|&(_, d)| d > params.max_point_dist))
+        .filter(|&i| {
+            let c = grid.centre(i);
+            index.nearest(c, 1).first().is_none_or(|&(_, d)| d > params.max_point_dist)
+                && scalp.bvh().closest_point(c, params.scalp_dist).is_none()
+        })
         .collect();
-    for i in far_from_points {
+    for i in not_hair {
         label[i] = 0;
     }
     stats.volume_voxels = label.iter().filter(|l| **l > 0).count() as u64;

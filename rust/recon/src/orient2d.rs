@@ -8,7 +8,10 @@
 //! `orient2d/<view>.png` (hue = θ, brightness = confidence).
 //!
 //! Method: Paris, Briceño, Sillion, "Capture of Hair Geometry from Multiple Images" (SIGGRAPH 2004)
-//! and the filter bank of `docs/method.md` §2 (σ≈2, λ≈3, γ≈0.5). Each orientation's filter is a
+//! and the filter bank of `docs/method.md` §2 (there σ≈2, λ≈3, γ≈0.5, 64 orientations). Our
+//! defaults are 24 orientations, σ = 3, λ = 6, γ = 0.5: on a rendered test-preset capture (16 views,
+//! 171×256 px, straight hair) the mean error against `gt/orientation` was 22.6° against 32.1° for
+//! σ = 2, λ = 3, and 24 orientations measured the same as 32. Each orientation's filter is a
 //! quadrature pair (even and odd Gabor, zero mean); its response is the pair's energy, which does
 //! not depend on whether strands appear brighter or darker than their gaps. The orientation is the
 //! argmax over the bank, refined by a parabola through the three bins around it; the confidence is
@@ -48,7 +51,7 @@ pub struct GaborParams {
 
 impl Default for GaborParams {
     fn default() -> Self {
-        Self { orientations: 32, sigma: 2.0, lambda: 3.0, gamma: 0.5 }
+        Self { orientations: 24, sigma: 3.0, lambda: 6.0, gamma: 0.5 }
     }
 }
 
@@ -161,13 +164,13 @@ impl GrayImage {
     }
 }
 
-/// Reads a hair mask: a pixel is hair when its (first channel) value is at least one half.
-pub fn load_mask(path: &Path, width: u32, height: u32) -> Result<Vec<bool>, Orient2dError> {
+/// Reads a hair mask: a pixel is hair when its value (luminance, in [0, 1]) is at least `threshold`.
+pub fn load_mask(path: &Path, width: u32, height: u32, threshold: f32) -> Result<Vec<bool>, Orient2dError> {
     let img = GrayImage::load(path)?;
     if (img.width, img.height) != (width, height) {
         return Err(Orient2dError::Size { path: path.into(), width, height, got_w: img.width, got_h: img.height });
     }
-    Ok(img.data.iter().map(|&v| v >= 0.5).collect())
+    Ok(img.data.iter().map(|&v| v >= threshold).collect())
 }
 
 /// One kernel tap: offset and even/odd weights.

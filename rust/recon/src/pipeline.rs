@@ -104,6 +104,8 @@ pub struct ReconstructOptions {
     pub strand_init: bool,
     pub seed: u64,
     pub gabor: GaborParams,
+    /// A mask pixel is hair when its value (coverage in [0, 1]) is at least this.
+    pub mask_threshold: f32,
     pub mvs: LineMvsParams,
     pub direction: DirectionParams,
     pub laplace: LaplaceParams,
@@ -124,6 +126,7 @@ impl Default for ReconstructOptions {
             strand_init: true,
             seed: 0,
             gabor: GaborParams::default(),
+            mask_threshold: 0.1,
             mvs: LineMvsParams::default(),
             direction: DirectionParams::default(),
             laplace: LaplaceParams::default(),
@@ -169,7 +172,7 @@ pub fn orient2d_stage(
         progress.update("orient2d", i as f32 / capture.views.len() as f32, &v.name);
         let img = GrayImage::load(&v.image)?;
         let mask = match &v.mask {
-            Some(m) => Some(load_mask(m, img.width, img.height)?),
+            Some(m) => Some(load_mask(m, img.width, img.height, opts.mask_threshold)?),
             None => None,
         };
         let map = bank.compute(&img, mask.as_deref());
@@ -360,7 +363,8 @@ pub fn reconstruct(
         let (flow, stats) = solve_flow(&raw, &inner, &scalp, &directed, &opts.laplace, progress)?;
         metrics.insert("laplace_stats".into(), serde_json::to_value(stats).unwrap_or_default());
         flow.save(&out_dir.join("flow.bin"))?;
-        let guides = grow_guides(&flow, &guide_roots, &opts.grow, progress)?;
+        let (guides, gstats) = grow_guides(&flow, &guide_roots, &opts.grow, progress)?;
+        metrics.insert("grow_stats".into(), serde_json::to_value(gstats).unwrap_or_default());
         let children = interpolate_children(&guides, &child_roots, Some(&flow), &opts.grow, progress)?;
         (guides, children)
     } else {

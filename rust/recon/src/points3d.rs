@@ -160,16 +160,16 @@ pub struct LineMvsParams {
 impl Default for LineMvsParams {
     fn default() -> Self {
         Self {
-            stride: 2,
+            stride: 1,
             neighbours: 8,
             max_view_angle_deg: 70.0,
             depth_offsets: (-2..=12).map(|k| k as f32 * 0.0005).collect(),
             depth_prior: 0.05,
             angle_steps: 36,
             min_confidence: 0.05,
-            max_cost: 0.06,
+            max_cost: 0.09,
             min_agree: 2,
-            agree_angle_deg: 12.0,
+            agree_angle_deg: 15.0,
             visibility_margin: 0.004,
         }
     }
