@@ -14,6 +14,7 @@ Each check prints its figure (run pytest with -s to see them):
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 from pathlib import Path
 
@@ -22,7 +23,9 @@ import pytest
 
 import _hairio as hio
 
-STEP = 2  # test every STEP-th ground-truth point (plenty: tens of thousands per view)
+# Test every STEP-th ground-truth point (plenty: tens of thousands per view). Raise it for
+# paper-preset captures (HAIRRECON_TEST_STEP=50 with HAIRRECON_TEST_CAPTURE=...).
+STEP = int(os.environ.get("HAIRRECON_TEST_STEP", "2"))
 
 
 def _views(cap: Path):
@@ -118,8 +121,8 @@ def test_orientation_matches_projected_tangents(test_capture):
     camera's Jacobian. Pixels where that reference is ambiguous (strands crossing inside the pixel:
     coherence of the visible tangents < 0.98) are left out; the figure for all pixels is printed."""
     cap = test_capture
-    pts, tans = _dense_gt(cap)
-    ss = 3
+    sub, ss = (4, 3) if STEP <= 2 else (2, 2)  # lighter for paper-preset captures
+    pts, tans = _dense_gt(cap, sub)
     errs, cohs = [], []
     for v, k, r, t in _views(cap):
         w, h = v["width"], v["height"]
@@ -231,6 +234,7 @@ def test_depth_is_planar_depth_of_the_surface(test_capture):
 
 
 def test_capture_loads_with_the_rust_loader(test_capture, tmp_path):
+    n_views = len(json.loads((test_capture / "capture.json").read_text())["views"])
     try:
         import hairrecon  # noqa: PLC0415
 
@@ -240,7 +244,7 @@ def test_capture_loads_with_the_rust_loader(test_capture, tmp_path):
     if loader is not None:
         c = loader(str(test_capture))
         print(f"loader: hairrecon.load_capture: {len(c['views'])} views")
-        assert len(c["views"]) == 16
+        assert len(c["views"]) == n_views
         return
     # The CLI: fuse-depth --check-capture runs hairrecon_core::capture::Capture::load on the folder.
     from conftest import hairrecon_bin
@@ -250,4 +254,4 @@ def test_capture_loads_with_the_rust_loader(test_capture, tmp_path):
     r = subprocess.run(cmd + ["--out", str(tmp_path / "m.ply"), "--check-capture"], capture_output=True, text=True)
     print("loader:", r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "")
     assert r.returncode == 0, r.stderr
-    assert "the capture loads: 16 views" in r.stderr
+    assert f"the capture loads: {n_views} views" in r.stderr
