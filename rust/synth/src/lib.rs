@@ -4,7 +4,7 @@
 //! - [`scalp_region`]: the rule that defines the scalp on that head, its submesh and UV mask.
 //! - [`collide`]: keeping points outside the head (signed distance with an offset).
 //! - [`style`]: the hairstyle presets (straight, wavy, curly, short, bob).
-//! - [`generate`]: the seeded, parallel strand generator.
+//! - [`mod@generate`]: the seeded, parallel strand generator.
 //! - [`preview`]: front/side/back pictures of a hairstyle on the head.
 //!
 //! The scalp's growth direction S(p_s) and the blue-noise root sampler live in

@@ -1,4 +1,4 @@
-//! Hairstyle presets: the numbers that shape each style of [`crate::generate`].
+//! Hairstyle presets: the numbers that shape each style of [`mod@crate::generate`].
 
 use std::fmt;
 use std::str::FromStr;
