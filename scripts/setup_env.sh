@@ -2,7 +2,8 @@
 # Sets up everything hairrecon needs on a fresh machine, idempotently:
 #   - .venv/ (Python 3.11) with bpy, numpy, maturin, pytest (requirements-dev.txt);
 #   - the release build of the `hairrecon` CLI (target/release/hairrecon);
-#   - the Python module `hairrecon` built by maturin into .venv.
+#   - the Python module `hairrecon`: one abi3 wheel built by maturin (target/wheels-hairrecon/), installed
+#     into .venv; the Blender extension's tests bundle the same wheel.
 # Needs: a Rust toolchain (cargo) and CPython 3.11 with venv and pip.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -38,7 +39,9 @@ fi
 echo "setup: building the hairrecon CLI (release)"
 cargo build --release --quiet -p hairrecon-cli
 
-echo "setup: building the Python module into .venv (maturin, release)"
-VIRTUAL_ENV="$ROOT/.venv" PATH="$ROOT/.venv/bin:$PATH" \
-  .venv/bin/maturin develop --release --quiet -m rust/python/Cargo.toml >/dev/null
+echo "setup: building the Python module (abi3 wheel, maturin, release) and installing it into .venv"
+rm -rf target/wheels-hairrecon
+.venv/bin/maturin build --release --quiet -m rust/python/Cargo.toml -o target/wheels-hairrecon >/dev/null
+wheel=$(ls target/wheels-hairrecon/hairrecon-*.whl | head -n 1)
+.venv/bin/python -m pip install --quiet --force-reinstall --no-deps "$wheel"
 .venv/bin/python -c 'import hairrecon, bpy; print("setup: ok (hairrecon", hairrecon.__version__ + ", bpy", bpy.app.version_string + ")")'
