@@ -200,10 +200,10 @@ impl Default for DrOptions {
         Self {
             iterations_guides: 100,
             iterations_children: 50,
-            lr: 2e-4,
-            lambda: 20.0,
+            lr: 2e-3,
+            lambda: 10.0,
             k_neighbors: 10,
-            neighbor_weight: 0.2,
+            neighbor_weight: 0.05,
             knn_key: KnnKey::Middle,
             width_m: 0.0002,
             views_per_step: 4,

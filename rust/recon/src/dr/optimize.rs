@@ -60,6 +60,106 @@ fn segments(offsets: &[usize]) -> Vec<[u32; 2]> {
     segs
 }
 
+/// The objective of one stage: renders the strands (or the children that follow them) in some
+/// views and returns `L_m + L_o` (averaged over the views) plus the regularizers, with the gradient
+/// with respect to the optimized points. Owns one renderer per view slot.
+#[derive(Debug)]
+pub struct Evaluator {
+    slots: Vec<Slot>,
+    segs: Vec<[u32; 2]>,
+    render_pts: Vec<Vec3>,
+    g_render: Vec<Vec3>,
+    /// Length scale of the regularizers (median initial segment length).
+    pub scale: f32,
+    settings: RasterSettings,
+}
+
+impl Evaluator {
+    /// For strands `x` with `offsets`, rendered themselves or, with `map`, through their children.
+    pub fn new(x: &[Vec3], offsets: &[usize], map: Option<&ChildMap>, targets: &DrTargets, opts: &DrOptions) -> Self {
+        let render_offsets: Vec<usize> = match map {
+            Some(m) => m.child_offsets().to_vec(),
+            None => offsets.to_vec(),
+        };
+        let n_render = *render_offsets.last().unwrap_or(&0);
+        let per_step = opts.views_per_step.clamp(1, targets.views.len().max(1));
+        Self {
+            slots: (0..per_step)
+                .map(|_| Slot { renderer: Renderer::new(AaMethod::Ours), d_image: Image::default(), grad: Vec::new() })
+                .collect(),
+            segs: segments(&render_offsets),
+            render_pts: vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }],
+            g_render: vec![Vec3::ZERO; n_render],
+            scale: median_segment_length(x, offsets),
+            settings: RasterSettings {
+                width: Width::World(opts.width_m),
+                shape: SegmentShape::Quad,
+                direction_3d: false,
+            },
+        }
+    }
+
+    /// The hard raster's ids (segment + 1, 0 = background) of view slot `slot` after the last
+    /// [`Evaluator::evaluate`]: where they stay the same, the loss is smooth.
+    pub fn hard_ids(&self, slot: usize) -> &[u32] {
+        &self.slots[slot].renderer.buffers.ids
+    }
+
+    /// The loss in the given views (at most as many as `views_per_step`); `g_x` is overwritten with
+    /// its gradient.
+    pub fn evaluate(
+        &mut self,
+        x: &[Vec3],
+        offsets: &[usize],
+        map: Option<&mut ChildMap>,
+        targets: &DrTargets,
+        views: &[usize],
+        opts: &DrOptions,
+        g_x: &mut [Vec3],
+    ) -> Result<f64, DrError> {
+        if let Some(m) = map.as_deref() {
+            m.forward(x, &mut self.render_pts);
+        }
+        let pts: &[Vec3] = if map.is_some() { &self.render_pts } else { x };
+        let views = &views[..views.len().min(self.slots.len())];
+        let (segs, settings) = (&self.segs, self.settings);
+        let losses: Vec<Result<f64, DrError>> = self.slots[..views.len()]
+            .par_iter_mut()
+            .zip(views.par_iter())
+            .map(|(slot, &v)| {
+                let view = &targets.views[v];
+                slot.renderer.forward(&view.camera, pts, segs, settings)?;
+                let r = &slot.renderer;
+                let loss = image_loss(&r.aa.image, &r.buffers.depth, view, &opts.weights, &mut slot.d_image);
+                slot.grad.clear();
+                slot.grad.resize(pts.len(), Vec3::ZERO);
+                slot.renderer.backward(&view.camera, pts, &slot.d_image, &mut slot.grad)?;
+                Ok(loss)
+            })
+            .collect();
+        let inv_v = 1.0 / views.len().max(1) as f32;
+        let mut loss = 0.0f64;
+        for l in losses {
+            loss += l? * inv_v as f64;
+        }
+        self.g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
+        for slot in &self.slots[..views.len()] {
+            for (g, s) in self.g_render.iter_mut().zip(&slot.grad) {
+                *g += *s * inv_v;
+            }
+        }
+        match map {
+            Some(m) => {
+                g_x.iter_mut().for_each(|g| *g = Vec3::ZERO);
+                m.backward(&self.g_render, g_x);
+            }
+            None => g_x.copy_from_slice(&self.g_render),
+        }
+        loss += regularizers(x, offsets, self.scale, &opts.weights, g_x);
+        Ok(loss)
+    }
+}
+
 /// The state of one stage: the optimized points and how they are rendered.
 struct StageInput<'a> {
     name: &'static str,
@@ -92,13 +192,6 @@ fn run_stage(
     if iterations == 0 || x.is_empty() {
         return Ok(stats);
     }
-    let render_offsets: Vec<usize> = match &map {
-        Some(m) => m.child_offsets().to_vec(),
-        None => offsets.to_vec(),
-    };
-    let segs = segments(&render_offsets);
-    let n_render = *render_offsets.last().unwrap_or(&0);
-    let mut render_pts = vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }];
     let lap = LaplacianParams {
         lambda: if opts.reparam { opts.lambda } else { 0.0 },
         k_neighbors: if opts.reparam && opts.neighbor_reparam { opts.k_neighbors } else { 0 },
@@ -108,17 +201,12 @@ fn run_stage(
     let mut reparam = Reparam::new(x, offsets, &lap);
     let free: Vec<u32> = reparam.free().to_vec();
     let nf = free.len();
-    let scale = median_segment_length(x, offsets);
-    let settings = RasterSettings { width: Width::World(opts.width_m), shape: SegmentShape::Quad, direction_3d: false };
+    let mut eval = Evaluator::new(x, offsets, map.as_deref(), targets, opts);
     let nv = targets.views.len();
     let per_step = opts.views_per_step.clamp(1, nv);
-    let mut slots: Vec<Slot> = (0..per_step)
-        .map(|_| Slot { renderer: Renderer::new(AaMethod::Ours), d_image: Image::default(), grad: Vec::new() })
-        .collect();
     let mut order: Vec<usize> = (0..nv).collect();
     let mut picker = Picker(hairrecon_core::scalp::splitmix64(opts.seed ^ iteration_base as u64) | 1);
     let mut adam = Adam::new(nf, opts.uniform_adam);
-    let mut g_render = vec![Vec3::ZERO; n_render];
     let mut g_x = vec![Vec3::ZERO; x.len()];
     let mut g_free = vec![Vec3::ZERO; nf];
     let mut g_u = vec![Vec3::ZERO; nf];
@@ -126,44 +214,8 @@ fn run_stage(
     let mut delta_x = vec![Vec3::ZERO; nf];
     for it in 0..iterations {
         progress.check()?;
-        if let Some(m) = map.as_deref() {
-            m.forward(x, &mut render_pts);
-        }
-        let pts: &[Vec3] = if map.is_some() { &render_pts } else { x };
         picker.pick(&mut order, per_step);
-        let losses: Vec<Result<f64, DrError>> = slots
-            .par_iter_mut()
-            .zip(order[..per_step].par_iter())
-            .map(|(slot, &v)| {
-                let view = &targets.views[v];
-                slot.renderer.forward(&view.camera, pts, &segs, settings)?;
-                let r = &slot.renderer;
-                let loss = image_loss(&r.aa.image, &r.buffers.depth, view, &opts.weights, &mut slot.d_image);
-                slot.grad.clear();
-                slot.grad.resize(pts.len(), Vec3::ZERO);
-                slot.renderer.backward(&view.camera, pts, &slot.d_image, &mut slot.grad)?;
-                Ok(loss)
-            })
-            .collect();
-        let inv_v = 1.0 / per_step as f32;
-        let mut loss = 0.0f64;
-        for l in losses {
-            loss += l? * inv_v as f64;
-        }
-        g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
-        for slot in &slots {
-            for (g, s) in g_render.iter_mut().zip(&slot.grad) {
-                *g += *s * inv_v;
-            }
-        }
-        match map.as_deref_mut() {
-            Some(m) => {
-                g_x.iter_mut().for_each(|g| *g = Vec3::ZERO);
-                m.backward(&g_render, &mut g_x);
-            }
-            None => g_x.copy_from_slice(&g_render),
-        }
-        loss += regularizers(x, offsets, scale, &opts.weights, &mut g_x);
+        let loss = eval.evaluate(x, offsets, map.as_deref_mut(), targets, &order[..per_step], opts, &mut g_x)?;
         if !loss.is_finite() {
             return Err(DrError::Diverged(iteration_base + it));
         }

@@ -1,0 +1,116 @@
+//! DR strand optimization on the output of `hairrecon reconstruct CAPTURE --out DIR --stop-after
+//! init`: reads `DIR/guides.hair`, `DIR/strands.hair` and `DIR/orient2d/*.exr`, optimizes, writes
+//! `OUT/guides.hair` and `OUT/strands.hair`, and prints the metric table before and after (when the
+//! capture has ground truth) and the time per iteration.
+//!
+//! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
+//! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
+//! `views`, `reparam`, `n`, `guide_opt`, `wo`, `wc`, `wl`, `seed`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use hairrecon_core::capture::Capture;
+use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
+use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
+use hairrecon_core::{Bvh, StrandSet};
+use hairrecon_recon::dr::{optimize, DrOptions, DrTargets};
+use hairrecon_recon::pipeline::load_orient2d;
+use hairrecon_recon::progress::Progress;
+
+struct Print;
+
+impl Progress for Print {
+    fn update(&self, stage: &str, fraction: f32, message: &str) {
+        let pct = (fraction * 100.0).round() as u32;
+        if pct % 10 == 0 {
+            eprintln!("{stage} {pct}% {message}");
+        }
+    }
+}
+
+fn table(pred: &StrandSet, gt: &StrandSet) -> String {
+    let opts = MetricOptions {
+        step: 0.001,
+        thresholds: vec![
+            Threshold { dist: 0.001, angle_deg: 10.0 },
+            Threshold { dist: 0.002, angle_deg: 20.0 },
+            Threshold { dist: 0.003, angle_deg: 30.0 },
+        ],
+    };
+    evaluate(pred, gt, &opts).map(|r| r.table()).unwrap_or_else(|e| e.to_string())
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 3 {
+        eprintln!("usage: dr_on_capture CAPTURE INIT_DIR OUT_DIR [key=value ...]");
+        std::process::exit(2);
+    }
+    let capture = Capture::load(&args[0])?;
+    let init = PathBuf::from(&args[1]);
+    let out = PathBuf::from(&args[2]);
+    let mut o = DrOptions::default();
+    for kv in &args[3..] {
+        let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
+        let f: f32 = v.parse()?;
+        match k {
+            "guides_iters" => o.iterations_guides = f as usize,
+            "children_iters" => o.iterations_children = f as usize,
+            "lr" => o.lr = f,
+            "lambda" => o.lambda = f,
+            "k" => o.k_neighbors = f as usize,
+            "nw" => o.neighbor_weight = f,
+            "width" => o.width_m = f,
+            "views" => o.views_per_step = f as usize,
+            "reparam" => o.reparam = f > 0.5,
+            "n" => o.neighbor_reparam = f > 0.5,
+            "guide_opt" => o.guide_opt = f > 0.5,
+            "wo" => o.weights.orientation = f,
+            "wc" => o.weights.curvature = f,
+            "wl" => o.weights.length = f,
+            "seed" => o.seed = f as u64,
+            _ => return Err(format!("unknown key {k}").into()),
+        }
+    }
+    println!("{o:?}");
+    let guides = read_strands(init.join("guides.hair"))?;
+    let children = read_strands(init.join("strands.hair"))?;
+    let maps = load_orient2d(&capture, &init)?;
+    let scalp = Bvh::new(read_mesh(capture.scalp_mesh.as_ref().ok_or("the capture has no scalp mesh")?)?);
+    let head = match &capture.head_mesh {
+        Some(h) => Some(Bvh::new(read_mesh(h)?)),
+        None => None,
+    };
+    let t = Instant::now();
+    let targets = DrTargets::from_capture(&capture, &maps, head.as_ref())?;
+    println!("targets: {} views in {:.2} s", targets.views.len(), t.elapsed().as_secs_f64());
+    println!(
+        "guides {} strands / {} points, children {} strands / {} points",
+        guides.num_strands(),
+        guides.num_points(),
+        children.num_strands(),
+        children.num_points()
+    );
+    let t = Instant::now();
+    let r = optimize(&guides, &children, &targets, &scalp, head.as_ref(), &o, &Print)?;
+    let secs = t.elapsed().as_secs_f64();
+    let iters = r.loss_curve.len().max(1);
+    println!(
+        "DR: {iters} iterations in {secs:.1} s ({:.3} s per iteration, wall), mean CG iterations {:.1}",
+        secs / iters as f64,
+        r.mean_cg_iterations
+    );
+    let curve: Vec<String> =
+        r.loss_curve.iter().step_by((iters / 15).max(1)).map(|(i, l)| format!("{i}:{l:.2}")).collect();
+    println!("loss curve: {}", curve.join(" "));
+    std::fs::create_dir_all(&out)?;
+    write_strands(out.join("guides.hair"), &r.guides)?;
+    write_strands(out.join("strands.hair"), &r.children)?;
+    if let Some(g) = &capture.gt_strands {
+        let gt = read_strands(g)?;
+        println!("before DR (children):\n{}", table(&children, &gt));
+        println!("after DR (children):\n{}", table(&r.children, &gt));
+    }
+    Ok(())
+}
