@@ -82,7 +82,7 @@ fn targets(gt: &StrandSet, cams: &[Camera], head: &Bvh, width_m: f32) -> DrTarge
                     orient[p] = [o.x, o.y, 1.0];
                 }
             }
-            DrView::new(i, cam.clone(), mask, orient, Some(depth)).unwrap()
+            DrView::new(i, *cam, mask, orient, Some(depth)).unwrap()
         })
         .collect();
     DrTargets { views }

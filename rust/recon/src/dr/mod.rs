@@ -147,7 +147,7 @@ impl DrTargets {
             let orientation =
                 m.theta.iter().zip(&m.confidence).map(|(t, c)| [(2.0 * t).cos(), (2.0 * t).sin(), *c]).collect();
             let depth = head.map(|h| DrView::head_depth_map(&v.camera, h));
-            views.push(DrView::new(i, v.camera.clone(), mask, orientation, depth)?);
+            views.push(DrView::new(i, v.camera, mask, orientation, depth)?);
         }
         Ok(Self { views })
     }

@@ -261,7 +261,7 @@ impl Reparam {
                 z[f] = (r[f] - z[f - 1] * off) * inv_den[f];
             }
             for f in (a..b - 1).rev() {
-                z[f] = z[f] - z[f + 1] * cp[f];
+                z[f] -= z[f + 1] * cp[f];
             }
         }
     }
