@@ -90,12 +90,18 @@ def parse_args(argv=None):
     p.add_argument(
         "--fusion-radius-mm",
         type=float,
-        help="hair radius for the fusion depth maps (default: half the median distance between neighbouring roots)",
+        help="hair radius for the fusion depth maps (default: half the median distance between neighbouring "
+        "roots or half a pixel at the head, whichever is larger)",
     )
     p.add_argument("--voxel-mm", type=float, default=2.0, help="TSDF voxel size for raw_mesh.ply")
     p.add_argument("--hairrecon-bin", help="the hairrecon binary (default: target/release/hairrecon, then PATH)")
     p.add_argument("--no-fuse", action="store_true", help="skip raw_mesh.ply (run hairrecon fuse-depth later)")
     p.add_argument("--no-blend", action="store_true", help="do not save scene.blend")
+    p.add_argument(
+        "--skip-photos",
+        action="store_true",
+        help="redo only the fusion depth maps and the raw mesh of an existing capture (same arguments otherwise)",
+    )
     p.add_argument("--only-view", type=int, help="render only this view (for pictures); implies --no-fuse")
     p.add_argument(
         "--filter-width", type=float, default=1.5, help="Cycles pixel filter width in pixels (Blackman-Harris)"
@@ -410,7 +416,7 @@ def main(argv=None):
 
     # Pass 1: the photographs, masks, ground-truth orientation and depth.
     sc.cycles.samples = a.samples
-    for n, i in enumerate(views):
+    for n, i in enumerate([] if a.skip_photos else views):
         name, ob, *_ = cams[i]
         t0 = time.time()
         sc.camera = ob
@@ -439,7 +445,10 @@ def main(argv=None):
     # Pass 2: depth of the hair volume for the raw mesh (ribbons through the centrelines, so the
     # depth is that of the strands themselves, not of a tube's surface).
     roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]
-    fr = a.fusion_radius_mm * 1e-3 if a.fusion_radius_mm else 0.5 * median_root_spacing(roots)
+    # Ribbons must close the gaps between strands AND cover a pixel, or the single sample per
+    # pixel sees through them and the fusion carves the hair away.
+    pixel = a.distance / float(cams[0][2][0, 0])
+    fr = a.fusion_radius_mm * 1e-3 if a.fusion_radius_mm else max(0.5 * median_root_spacing(roots), 0.5 * pixel)
     fr = max(fr, a.radius_mm * 1e-3)
     t_fusion = time.time()
     if a.only_view is None:
