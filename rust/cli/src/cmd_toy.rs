@@ -223,9 +223,10 @@ pub struct ToyLettersArgs {
     /// Adam learning rate (metres per step on each segment vector).
     #[arg(long, default_value_t = 2e-5)]
     lr: f32,
-    /// Do not average gradients over neighbouring strands (see `hairrecon_raster::letters`).
+    /// Average each strand's gradient with its 10 nearest strands' (experimental, overshoots; see
+    /// `hairrecon_raster::letters`).
     #[arg(long)]
-    no_neighbours: bool,
+    neighbours: bool,
     /// Picture of target, start and end (front view).
     #[arg(long, default_value = "docs/images/letters.png")]
     out: PathBuf,
@@ -245,7 +246,7 @@ pub fn run_letters(a: ToyLettersArgs) -> CmdResult {
         segments: a.segments,
         iters: a.iters,
         learning_rate: a.lr,
-        neighbour_mixing: !a.no_neighbours,
+        neighbour_mixing: a.neighbours,
         ..LettersConfig::default()
     };
     let pb = progress::bar(a.iters as u64, "toy-letters");

@@ -1,6 +1,6 @@
 //! Anti-aliasing as its own differentiable op: one entry point for the three methods.
 //!
-//! `antialias_forward` reads the hard [`Buffers`] of [`crate::rasterize`] and the primitives of the
+//! `antialias_forward` reads the hard [`Buffers`] of [`crate::rasterize()`] and the primitives of the
 //! [`Screen`], and writes an anti-aliased image plus a saved buffer into an [`AaOutput`];
 //! `antialias_backward` consumes that saved buffer and the gradient of the loss with respect to the
 //! anti-aliased image, and returns the gradient with respect to the hard attributes (to pass on to

@@ -14,10 +14,11 @@
 //! the segment vectors of each strand (a point is its root plus the sum of the segment vectors
 //! before it), a cumulative reparameterization that lets a pull at the tip move the whole strand, in
 //! place of Nicolet et al.'s `(I + λL)` along the strand; and, in place of the kNN Laplacian N, the
-//! gradient of each strand's segment vectors is averaged with those of its 10 nearest strands of the
-//! same bundle (neighbours found at 50% of the length, as in the supplement), so that strands hidden
-//! behind others (which get no gradient from the images) grow with their neighbours. All letters
-//! share one optimization (no loss couples them).
+//! optional averaging of each strand's segment-vector gradient with those of its 10 nearest strands
+//! of the same bundle (neighbours found at 50% of the length, as in the supplement), meant to make
+//! strands hidden behind others (which get no gradient from the images) grow with their neighbours;
+//! it is off by default because, untuned, it overshoots. Without it the silhouette is matched but the
+//! hidden strands stay short. All letters share one optimization (no loss couples them).
 
 use glam::{Vec2, Vec3};
 use hairrecon_core::Camera;
@@ -42,7 +43,9 @@ pub struct LettersConfig {
     pub length_weight: f32,
     pub curvature_weight: f32,
     pub seed: u64,
-    /// Average each strand's gradient with its 10 nearest strands' (see the module doc).
+    /// Average each strand's gradient with its 10 nearest strands' (see the module doc). Off by
+    /// default: in its present form it makes the strands overshoot (measured: mean length ratio 1.37,
+    /// front-view IoU 0.26 after 300 steps, against 0.32 and 0.94 without it).
     pub neighbour_mixing: bool,
 }
 
@@ -61,7 +64,7 @@ impl Default for LettersConfig {
             length_weight: 1e3,
             curvature_weight: 1e3,
             seed: 1,
-            neighbour_mixing: true,
+            neighbour_mixing: false,
         }
     }
 }

@@ -10,7 +10,7 @@
 //!    [`Screen::backward_vertices`] (corner and direction gradients → per-vertex pixel gradients) and
 //!    [`Screen::backward_world`] (→ ∂L/∂X in 3D, through the projection's Jacobian and the
 //!    depth-dependent width).
-//! 2. [`rasterize`]: primitives → [`Buffers`]: id (segment + 1, 0 = background), depth, and the
+//! 2. [`rasterize()`]: primitives → [`Buffers`]: id (segment + 1, 0 = background), depth, and the
 //!    attributes coverage and `(cos 2θ, sin 2θ)` (optionally the 3D direction); see [`channel`].
 //!    Banded, rayon over bands. Piecewise constant; its backward [`attributes_backward`] gives the
 //!    orientation gradient through `θ`.
