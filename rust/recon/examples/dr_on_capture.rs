@@ -51,6 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let init = PathBuf::from(&args[1]);
     let out = PathBuf::from(&args[2]);
     let mut o = DrOptions::default();
+    let mut diag = false;
     for kv in &args[3..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
         let f: f32 = v.parse()?;
@@ -70,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,
             "seed" => o.seed = f as u64,
+            "diag" => diag = f > 0.5,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
@@ -92,6 +94,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         children.num_strands(),
         children.num_points()
     );
+    if diag {
+        // Mean rendered coverage of the initial children against the mean mask, per view.
+        use hairrecon_raster::{channel, AaMethod, RasterSettings, Renderer, SegmentShape, Width};
+        let segs = hairrecon_raster::strand_segments(&children);
+        let settings =
+            RasterSettings { width: Width::World(o.width_m), shape: SegmentShape::Quad, direction_3d: false };
+        let mut r = Renderer::new(AaMethod::Ours);
+        for (i, v) in targets.views.iter().enumerate().step_by(4) {
+            let img = r.forward(&v.camera, children.points(), &segs, settings)?;
+            let cov: f32 = img.data.iter().skip(channel::COVERAGE).step_by(img.channels).sum();
+            let mask: f32 = v.mask.iter().sum();
+            println!("view {i}: rendered coverage {cov:.0} px, mask {mask:.0} px");
+        }
+    }
     let t = Instant::now();
     let r = optimize(&guides, &children, &targets, &scalp, head.as_ref(), &o, &Print)?;
     let secs = t.elapsed().as_secs_f64();
