@@ -54,7 +54,7 @@ impl Default for GrowParams {
             outer_margin: 0.003,
             head_clearance: 0.001,
             k: 4,
-            max_gap: 0.008,
+            max_gap: 0.02,
             exit_cos: 0.6,
         }
     }

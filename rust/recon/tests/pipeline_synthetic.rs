@@ -32,7 +32,9 @@ fn undirected_2mm(m: &serde_json::Value, key: &str) -> (f64, f64, f64) {
 fn every_stage_meets_its_floor() {
     let cap = capture("full");
     let out_dir = cap.dir.join("out");
-    let opts = ReconstructOptions { guides: 400, children: 4000, ..Default::default() };
+    // Every second pixel in the line MVS keeps the test fast.
+    let mvs = hairrecon_recon::points3d::LineMvsParams { stride: 2, ..Default::default() };
+    let opts = ReconstructOptions { guides: 400, children: 4000, mvs, ..Default::default() };
     let out = reconstruct(&cap, &out_dir, &opts, &NoProgress).unwrap();
     let m = &out.metrics;
     println!("{}", serde_json::to_string_pretty(m).unwrap());

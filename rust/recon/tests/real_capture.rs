@@ -101,3 +101,25 @@ fn orient3d_parameter_sweep() {
     }
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// The whole pipeline; the output folder is `HAIRRECON_OUT` (default: a temporary folder).
+#[test]
+#[ignore]
+fn full_pipeline() {
+    use hairrecon_recon::pipeline::{reconstruct, ReconstructOptions};
+    use hairrecon_recon::progress::NoProgress;
+    let Some(cap) = capture() else { return };
+    let out = std::env::var("HAIRRECON_OUT")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|_| std::env::temp_dir().join(format!("hairrecon-full-{}", std::process::id())));
+    let r = reconstruct(&cap, &out, &ReconstructOptions::default(), &NoProgress).unwrap();
+    println!("{:?}", r.stage_times);
+    for (k, v) in r.metrics.as_object().unwrap() {
+        if k.starts_with("init") {
+            let s = &v["undirected"][1];
+            println!("{k}: undirected 2 mm/20°: P {:.1} R {:.1} F1 {:.1}", s["precision"], s["recall"], s["f1"]);
+        } else {
+            println!("{k}: {v}");
+        }
+    }
+}
