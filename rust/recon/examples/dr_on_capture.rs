@@ -105,7 +105,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let img = r.forward(&v.camera, children.points(), &segs, settings)?;
             let cov: f32 = img.data.iter().skip(channel::COVERAGE).step_by(img.channels).sum();
             let mask: f32 = v.mask.iter().sum();
-            println!("view {i}: rendered coverage {cov:.0} px, mask {mask:.0} px");
+            // Alignment: overlap of where strands render (any coverage) and where the mask says hair.
+            let (mut inter, mut uni, mut conf_in) = (0u32, 0u32, 0.0f32);
+            for (p, m) in v.mask.iter().enumerate() {
+                let (a, b) = (img.data[p * img.channels + channel::COVERAGE] > 0.0, *m > 0.1);
+                inter += (a && b) as u32;
+                uni += (a || b) as u32;
+                if a {
+                    conf_in += v.orientation[p][2];
+                }
+            }
+            println!(
+                "view {i}: rendered coverage {cov:.0} px, mask {mask:.0} px, IoU {:.2}, mean confidence under strands {:.3}",
+                inter as f32 / uni.max(1) as f32,
+                conf_in / cov.max(1.0)
+            );
         }
     }
     let t = Instant::now();
