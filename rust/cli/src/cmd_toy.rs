@@ -108,7 +108,7 @@ pub fn run_aa(a: ToyAaArgs) -> CmdResult {
     if a.json {
         let v = serde_json::json!({
             "aa": method.name(),
-            "width_px": a.width_px,
+            "width_px": (a.width_px as f64 * 1e6).round() / 1e6,
             "iters": a.iters,
             "initial_loss": r.initial_loss,
             "final_loss": r.final_loss,
