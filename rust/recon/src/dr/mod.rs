@@ -5,7 +5,7 @@
 //! mask as coverage in [0, 1], the orientation `(cos 2θ, sin 2θ)` with confidence of
 //! [`crate::orient2d`], optionally the head's depth as an occluder), the scalp and head BVHs, and
 //! [`DrOptions`]. Out: [`DrResult`]: optimized guides and children (roots on the scalp, no point
-//! inside the head, even segment lengths) and the loss curve. Entry point: [`optimize`].
+//! inside the head, even segment lengths) and the loss curve. Entry point: [`optimize()`].
 //!
 //! One file per part:
 //! - [`losses`]: L_m, L_o, R_c and the segment-length regularizer (R_root holds exactly: roots are
@@ -26,7 +26,7 @@
 //!   `examples/dr_on_capture.rs`): directed F1 at 2 mm/20° 41.5 → 41.9 after 60 + 20 steps; the
 //!   loss of 4 random views rises in the first steps while the loss of all 16 views falls
 //!   (927.3 → 925.9 in 5 steps at lr 2e-4): with so few views per step, each step fits its views at
-//!   the others' cost. 4.8 s wall (1.2 s CPU) per step on the shared 2-core machine.
+//!   the others' cost. 4.8 s wall (1.2 to 1.6 s CPU) per step on the shared 2-core machine.
 //!
 //! Known limits: the loss weights are not normalized by the number of points, so the regularizers
 //! weigh ten times more in a stage with ten times more points; strands cannot change their point
@@ -168,7 +168,7 @@ impl DrTargets {
     }
 }
 
-/// Options of [`optimize`].
+/// Options of [`optimize()`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DrOptions {
     /// Adam steps on the guides (0 or `guide_opt = false`: no guide stage).
@@ -236,7 +236,7 @@ impl Default for DrOptions {
     }
 }
 
-/// What [`optimize`] returns.
+/// What [`optimize()`] returns.
 #[derive(Debug, Clone)]
 pub struct DrResult {
     pub guides: hairrecon_core::StrandSet,
