@@ -6,11 +6,8 @@ It needs:
 
 - the ``hairrecon`` binary: ``$HAIRRECON_BIN`` if set, else ``target/release/hairrecon``, built with
   ``cargo build --release -p hairrecon-cli`` (a no-op when it is up to date);
-- the head fixture ``blend_fixtures/head.ply`` (and ``scalp.ply`` if present); without it, the raw
-  head of ``/work/shared/data/heads/woman_head.ply`` (or ``$HAIRRECON_RAW_HEAD``) brought to the
-  fixture's frame;
-- hair from ``hairrecon synth-hair --style straight``; if that subcommand is not available, toy hair
-  from ``scripts/_toyhair.py`` (the fixture says so on stdout).
+- the head fixture ``blend_fixtures/head.ply`` and ``scalp.ply``;
+- hair from ``hairrecon synth-hair --style straight`` (2,000 strands, seed 0).
 
 Set ``HAIRRECON_TEST_CAPTURE`` to an existing capture folder to skip the render (for development).
 """
@@ -40,37 +37,21 @@ def hairrecon_bin() -> Path:
     return REPO / "target" / "release" / "hairrecon"
 
 
-def _head(tmp: Path) -> tuple[Path, Path | None]:
+def _head() -> tuple[Path, Path]:
     head = REPO / "blend_fixtures" / "head.ply"
     scalp = REPO / "blend_fixtures" / "scalp.ply"
-    if head.is_file():
-        return head, scalp if scalp.is_file() else None
-    import _hairio as hio
-    import _toyhair as th
-
-    raw = Path(os.environ.get("HAIRRECON_RAW_HEAD", "/work/shared/data/heads/woman_head.ply"))
-    v, f = hio.read_ply(raw)
-    out = tmp / "head.ply"
-    hio.write_ply(out, th.fixture_head(v), f)
-    return out, None
+    for f in (head, scalp):
+        if not f.is_file():
+            raise FileNotFoundError(f"{f} is missing; it is part of the repository (blend_fixtures/README.md)")
+    return head, scalp
 
 
-def _hair(exe: Path, head: Path, tmp: Path, strands: int) -> Path:
+def _hair(exe: Path, tmp: Path, strands: int) -> Path:
     out = tmp / "gt.hair"
-    r = subprocess.run(
-        [str(exe), "synth-hair", "--style", "straight", "--strands", str(strands), "--seed", "0", "--out", str(out)],
-        capture_output=True,
-        text=True,
-    )
-    if r.returncode == 0 and out.is_file():
-        return out
-    print(f"test_capture: synth-hair unavailable ({r.stderr.strip()[:200]}); using toy hair", flush=True)
-    import _hairio as hio
-    import _toyhair as th
-
-    v, f = hio.read_ply(head)
-    pts, counts = th.toy_hair(v, f, strands, seed=0)
-    hio.write_hair(out, pts, counts)
+    cmd = [str(exe), "synth-hair", "--style", "straight", "--strands", str(strands), "--seed", "0", "--out", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0 or not out.is_file():
+        raise RuntimeError(f"{' '.join(cmd)} failed: {r.stderr.strip()[-2000:]}")
     return out
 
 
@@ -82,12 +63,10 @@ def test_capture(tmp_path_factory) -> Path:
         return Path(env)
     tmp = tmp_path_factory.mktemp("synthetic")
     exe = hairrecon_bin()
-    head, scalp = _head(tmp)
-    hair = _hair(exe, head, tmp, 2000)
+    head, scalp = _head()
+    hair = _hair(exe, tmp, 2000)
     cap = tmp / "capture"
     cmd = [sys.executable, str(SCRIPTS / "render_synthetic.py"), str(hair), str(head), str(cap)]
-    cmd += ["--preset", "test", "--hairrecon-bin", str(exe)]
-    if scalp:
-        cmd += ["--scalp", str(scalp)]
+    cmd += ["--preset", "test", "--hairrecon-bin", str(exe), "--scalp", str(scalp)]
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
     return cap
