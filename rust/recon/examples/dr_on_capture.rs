@@ -71,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,
             "seed" => o.seed = f as u64,
+            "project_every" => o.project_every = f as usize,
             "diag" => diag = f > 0.5,
             _ => return Err(format!("unknown key {k}").into()),
         }
@@ -101,6 +102,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let settings =
             RasterSettings { width: Width::World(o.width_m), shape: SegmentShape::Quad, direction_3d: false };
         let mut r = Renderer::new(AaMethod::Ours);
+        if let Some(h) = &head {
+            let diag_deep = std::env::var("DEEP").is_ok();
+            let n = children.num_points();
+            let inside = children
+                .points()
+                .iter()
+                .filter(|p| {
+                    h.signed_distance(**p, 0.05)
+                        .is_some_and(|d| d < o.head_clearance - if diag_deep { 0.004 } else { 0.0 })
+                })
+                .count();
+            println!("{inside} of {n} child points are closer than the clearance to the head or inside it");
+            for (name, set) in [("guides", &guides), ("children", &children)] {
+                let f = hairrecon_recon::dr::finalize(set, &scalp, Some(h), o.head_clearance, false);
+                let d: Vec<f32> = f.points().iter().zip(set.points()).map(|(a, b)| (*a - *b).length()).collect();
+                let moved = d.iter().filter(|x| **x > 1e-6).count();
+                let big = d.iter().filter(|x| **x > 0.003).count();
+                let max = d.iter().fold(0.0f32, |a, b| a.max(*b));
+                println!("finalize moves {moved} {name} points ({big} by more than 3 mm, at most {:.1} mm)", max * 1e3);
+            }
+        }
         for (i, v) in targets.views.iter().enumerate().step_by(4) {
             let img = r.forward(&v.camera, children.points(), &segs, settings)?;
             let cov: f32 = img.data.iter().skip(channel::COVERAGE).step_by(img.channels).sum();

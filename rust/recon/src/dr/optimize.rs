@@ -370,7 +370,7 @@ pub fn optimize(
 
 /// Makes strands simulation-ready: each root on the closest scalp point (within 5 cm), optionally
 /// every strand resampled to equal segment lengths (same point count), then every other point
-/// pushed at least `clearance` outside the head.
+/// pushed at least `clearance` outside the head (if at most 5 mm inside it).
 pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance: f32, equalize: bool) -> StrandSet {
     let mut out: Vec<Vec3> = strands.points().to_vec();
     let offs = strands.offsets();
