@@ -13,7 +13,7 @@ cargo clippy --quiet --workspace --all-targets -- -D warnings
 echo "== cargo test (release profile; the Python module is tested from Python)"
 cargo test --release --workspace --exclude hairrecon-python
 echo "== pytest tests/python"
-export HAIRRECON_BIN="$(pwd)/target/release/hairrecon"
+export HAIRRECON_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/release/hairrecon"
 export HAIRRECON_WHEEL="$(ls "$(pwd)"/target/wheels-hairrecon/hairrecon-*.whl | head -n 1)"
 .venv/bin/python -m pytest -q tests/python
 echo "== all tests passed in $(( $(date +%s) - start )) s"
