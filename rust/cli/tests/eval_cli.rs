@@ -1,0 +1,94 @@
+//! Issue 2's acceptance for `hairrecon eval --json`, through the real binary and real files:
+//! the same file scores 100 everywhere; a 1.5 mm perpendicular shift scores 0 at 1 mm and 100 at
+//! 2 and 3 mm; reversed strands score 0 directed and 100 undirected. Also the one-line errors.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use glam::Vec3;
+use hairrecon_core::formats::write_strands;
+use hairrecon_core::StrandSet;
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_hairrecon")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("hairrecon-eval-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Straight parallel strands 10 mm apart along X, 10 cm long, shifted by `offset`.
+fn parallel(offset: Vec3) -> StrandSet {
+    let mut pts = Vec::new();
+    for i in 0..20 {
+        for j in 0..21 {
+            pts.push(Vec3::new(i as f32 * 0.01, 0.0, -0.005 * j as f32) + offset);
+        }
+    }
+    StrandSet::new(pts, vec![21; 20]).unwrap()
+}
+
+fn eval_json(pred: &Path, gt: &Path) -> serde_json::Value {
+    let out = Command::new(bin()).args(["eval", "--json", "--pred"]).arg(pred).arg("--gt").arg(gt).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.trim().lines().count(), 1, "stdout must hold exactly one JSON object: {text}");
+    serde_json::from_str(&text).unwrap()
+}
+
+fn f1s(v: &serde_json::Value, mode: &str) -> Vec<f64> {
+    let rows = v[mode].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    for (row, (d, a)) in rows.iter().zip([(1.0, 10.0), (2.0, 20.0), (3.0, 30.0)]) {
+        assert!((row["dist_mm"].as_f64().unwrap() - d).abs() < 1e-6);
+        assert!((row["angle_deg"].as_f64().unwrap() - a).abs() < 1e-6);
+    }
+    rows.iter().map(|r| (r["f1"].as_f64().unwrap() * 1e6).round() / 1e6).collect()
+}
+
+#[test]
+fn eval_json_acceptance() {
+    let d = tmp("acceptance");
+    let gt = d.join("gt.hair");
+    write_strands(&gt, &parallel(Vec3::ZERO)).unwrap();
+    // Other formats for the prediction: the metric must not depend on the file type.
+    let shifted = d.join("shifted.ply");
+    write_strands(&shifted, &parallel(Vec3::new(0.0, 0.0015, 0.0))).unwrap();
+    let reversed = d.join("reversed.data");
+    write_strands(&reversed, &parallel(Vec3::ZERO).reversed()).unwrap();
+
+    let same = eval_json(&gt, &gt);
+    assert_eq!(f1s(&same, "directed"), vec![100.0; 3]);
+    assert_eq!(f1s(&same, "undirected"), vec![100.0; 3]);
+
+    let s = eval_json(&shifted, &gt);
+    assert_eq!(f1s(&s, "directed"), vec![0.0, 100.0, 100.0]);
+    assert_eq!(f1s(&s, "undirected"), vec![0.0, 100.0, 100.0]);
+
+    let r = eval_json(&reversed, &gt);
+    assert_eq!(f1s(&r, "directed"), vec![0.0; 3]);
+    assert_eq!(f1s(&r, "undirected"), vec![100.0; 3]);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn errors_are_one_clear_line_and_non_zero() {
+    let d = tmp("errors");
+    let missing = d.join("missing.hair");
+    let bad = d.join("bad.hair");
+    std::fs::write(&bad, b"NOPE this is not a hair file").unwrap();
+    for (pred, what) in [(&missing, "missing.hair"), (&bad, "bad.hair")] {
+        let out = Command::new(bin()).args(["eval", "--pred"]).arg(pred).arg("--gt").arg(pred).output().unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(err.contains("hairrecon: error:") && err.contains(what), "{err}");
+    }
+    let out = Command::new(bin()).args(["convert"]).arg(&bad).arg(d.join("out.xyz")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(!d.join("out.xyz").exists(), "no output file on failure");
+    let _ = std::fs::remove_dir_all(&d);
+}
