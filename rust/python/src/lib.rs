@@ -26,6 +26,9 @@ mod job;
 
 use error::{guard, to_py, Cancelled, HairreconError};
 
+/// Strands as numpy arrays: points float32 (N, 3) and counts uint32 (S,).
+type StrandArrays<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<u32>>);
+
 /// Parses a JSON string into Python objects (dicts, lists, floats).
 pub(crate) fn json_to_py(py: Python<'_>, value: &serde_json::Value) -> PyResult<PyObject> {
     let text = serde_json::to_string(value).map_err(to_py)?;
@@ -58,10 +61,7 @@ fn points_to_py<'py>(py: Python<'py>, pts: &[Vec3]) -> PyResult<Bound<'py, PyArr
 /// Reads strands from a .hair, .data, .ply or .obj file. Returns `(points, counts)`: float32 (N, 3)
 /// and uint32 (S,), each strand root first.
 #[pyfunction]
-fn read_strands<'py>(
-    py: Python<'py>,
-    path: PathBuf,
-) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<u32>>)> {
+fn read_strands<'py>(py: Python<'py>, path: PathBuf) -> PyResult<StrandArrays<'py>> {
     let s = py.allow_threads(|| guard(|| formats::read_strands(&path).map_err(to_py)))?;
     let (pts, counts) = s.into_parts();
     Ok((points_to_py(py, &pts)?, PyArray1::from_vec(py, counts)))
