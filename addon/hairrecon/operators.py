@@ -91,16 +91,23 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
             self.report({"ERROR"}, f"cannot prepare the reconstruction: {e}")
         return None
 
-    def execute(self, context):
-        """Synchronous path: background mode, scripts, tests."""
+    def _start(self, context):
+        """A prepared and started session, or None after reporting why not."""
         session = self._prepare(context)
         if session is None:
-            return {"CANCELLED"}
+            return None
         try:
             session.start()
         except Exception as e:  # noqa: BLE001
             session.cleanup()
             self.report({"ERROR"}, str(e) if isinstance(e, UserError) else f"cannot start the reconstruction: {e}")
+            return None
+        return session
+
+    def execute(self, context):
+        """Synchronous path: background mode, scripts, tests."""
+        session = self._start(context)
+        if session is None:
             return {"CANCELLED"}
         session.wait(echo=bpy.app.background)
         return self._finish(context, session)
@@ -108,14 +115,8 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
-        session = self._prepare(context)
+        session = self._start(context)
         if session is None:
-            return {"CANCELLED"}
-        try:
-            session.start()
-        except Exception as e:  # noqa: BLE001
-            session.cleanup()
-            self.report({"ERROR"}, str(e) if isinstance(e, UserError) else f"cannot start the reconstruction: {e}")
             return {"CANCELLED"}
         _ACTIVE["session"] = session
         self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
