@@ -366,6 +366,44 @@ mod tests {
     }
 
     #[test]
+    fn shortcut_counts_equal_the_full_search() {
+        // Random wiggly strands, and a prediction that matches some and misses others.
+        let mut seed = 99u64;
+        let mut rnd = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+        };
+        let mut make = |jitter: f32| {
+            let mut pts = Vec::new();
+            for i in 0..200 {
+                let root = Vec3::new((i % 20) as f32 * 0.002, (i / 20) as f32 * 0.002, 0.0);
+                let off = Vec3::new(rnd(), rnd(), rnd()) * jitter;
+                for j in 0..30 {
+                    let z = -0.002 * j as f32;
+                    pts.push(root + off + Vec3::new(0.002 * (z * 300.0).sin(), 0.001 * rnd() * jitter * 100.0, z));
+                }
+            }
+            StrandSet::new(pts, vec![30; 200]).unwrap()
+        };
+        let gt = make(0.0);
+        let pred = make(0.004);
+        let a = OrientedPoints::from_strands(&pred, 0.001).unwrap();
+        let b = OrientedPoints::from_strands(&gt, 0.001).unwrap();
+        let cos: Vec<f32> = PAPER_THRESHOLDS.iter().map(|t| t.angle_deg.to_radians().cos()).collect();
+        let mut want = (vec![0u64; 3], vec![0u64; 3]);
+        for (&p, &t) in a.points.iter().zip(&a.tangents) {
+            let m = b.match_mask(p, t, &PAPER_THRESHOLDS, &cos);
+            for i in 0..3 {
+                want.0[i] += ((m >> i) & 1) as u64;
+                want.1[i] += ((m >> (MAX_THRESHOLDS + i)) & 1) as u64;
+            }
+        }
+        let got = b.match_counts(&a, &PAPER_THRESHOLDS);
+        assert_eq!(got, want);
+        assert!(want.0[0] > 0 && want.0[0] < a.len() as u64, "the case must mix matches and misses: {want:?}");
+    }
+
+    #[test]
     fn empty_prediction_scores_zero() {
         let gt = parallel(3, 0.01, Vec3::ZERO);
         let r = evaluate(&StrandSet::empty(), &gt, &MetricOptions::default()).unwrap();
