@@ -184,6 +184,34 @@ pub struct MvsView<'a> {
     pub image: Option<&'a GrayImage>,
 }
 
+/// How a 3D line (a point and a direction) looks in one view.
+enum Seen {
+    /// The point is behind the camera.
+    Behind,
+    /// It projects onto a pixel without hair orientation (zero confidence).
+    OffHair,
+    /// It projects onto hair: the map's confidence there and the sin² of the angle between the line's
+    /// projection and the map's orientation.
+    Hair { confidence: f32, sin2: f32 },
+}
+
+impl MvsView<'_> {
+    /// Projects the line through `p` along `d` into this view and compares it with the orientation map.
+    fn see_line(&self, p: Vec3, d: Vec3) -> Seen {
+        let pc = self.camera.to_camera(p);
+        if pc.z <= 1e-6 {
+            return Seen::Behind;
+        }
+        let pix = self.camera.camera_to_pixel(pc);
+        let (th, c) = self.map.sample(pix.x, pix.y);
+        if c <= 0.0 {
+            return Seen::OffHair;
+        }
+        let [a, b] = self.camera.camera_jacobian(pc);
+        Seen::Hair { confidence: c, sin2: sin2(Vec2::new(a.dot(d), b.dot(d)), th) }
+    }
+}
+
 /// Samples of the photometric patch: 5 across the line × 3 along it.
 const PATCH: usize = 15;
 
@@ -350,22 +378,17 @@ pub fn estimate(
                     let d = e1 * phi.cos() + ray * phi.sin();
                     let (mut sum, mut wsum) = (0.0f32, 0.0f32);
                     for &j in vis {
-                        let cj = views[j].camera;
-                        let pc = cj.to_camera(p);
-                        if pc.z <= 1e-6 {
-                            continue;
+                        match views[j].see_line(p, d) {
+                            Seen::Behind => {}
+                            Seen::OffHair => {
+                                sum += OFF_HAIR_WEIGHT;
+                                wsum += OFF_HAIR_WEIGHT;
+                            }
+                            Seen::Hair { confidence, sin2 } => {
+                                sum += confidence * sin2;
+                                wsum += confidence;
+                            }
                         }
-                        let pix = cj.camera_to_pixel(pc);
-                        let (th, c) = views[j].map.sample(pix.x, pix.y);
-                        if c <= 0.0 {
-                            sum += OFF_HAIR_WEIGHT;
-                            wsum += OFF_HAIR_WEIGHT;
-                            continue;
-                        }
-                        let [a, b] = cj.camera_jacobian(pc);
-                        let pd = Vec2::new(a.dot(d), b.dot(d));
-                        sum += c * sin2(pd, th);
-                        wsum += c;
                     }
                     (if wsum > 0.0 { sum / wsum } else { 1.0 }, p, d)
                 };
@@ -431,18 +454,7 @@ pub fn estimate(
                 // Agreement count.
                 let mut agree = 0;
                 for &j in vis {
-                    let cj = views[j].camera;
-                    let pc = cj.to_camera(p);
-                    if pc.z <= 1e-6 {
-                        continue;
-                    }
-                    let pix = cj.camera_to_pixel(pc);
-                    let (th, c) = views[j].map.sample(pix.x, pix.y);
-                    if c <= 0.0 {
-                        continue;
-                    }
-                    let [a, b] = cj.camera_jacobian(pc);
-                    if sin2(Vec2::new(a.dot(d), b.dot(d)), th) <= agree_s2 {
+                    if matches!(views[j].see_line(p, d), Seen::Hair { sin2, .. } if sin2 <= agree_s2) {
                         agree += 1;
                     }
                 }
