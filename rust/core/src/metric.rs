@@ -124,7 +124,13 @@ impl OrientedPoints {
             return (0, u32::MAX);
         }
         let q = p.to_array();
-        let nearest = self.tree.nearest_one::<SquaredEuclidean>(&q);
+        // Bounded by the widest threshold: a query far from every point (a strand the other set
+        // lacks) then prunes the tree at once instead of searching it for a far nearest point.
+        let dmax = thresholds.iter().fold(0.0f32, |m, t| m.max(t.dist));
+        let one = std::num::NonZeroUsize::MIN;
+        let Some(nearest) = self.tree.nearest_n_within::<SquaredEuclidean>(&q, dmax * dmax, one, true).pop() else {
+            return (0, u32::MAX);
+        };
         let d0 = nearest.distance;
         let c0 = self.tangents[nearest.item as usize].dot(t);
         let mut mask = 0u32;

@@ -1,0 +1,100 @@
+//! Re-runs the strand initialization (Laplace flow, guide growth, children) on the directed points
+//! that `hairrecon reconstruct CAPTURE --out DIR --stop-after direction` saved, with parameters
+//! given as `key=value`, and prints the growth statistics, the time and the metric table of the
+//! children against the capture's ground truth. For tuning the init stage without re-running the
+//! earlier ones.
+//!
+//! `cargo run --release -p hairrecon-recon --example init_stage -- CAPTURE DIR OUT [key=value ...]`
+//! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
+//! `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
+//! ground-truth strand only, for speed).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use hairrecon_core::capture::Capture;
+use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
+use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
+use hairrecon_core::Bvh;
+use hairrecon_recon::grow::{grow_guides, interpolate_children, GrowParams};
+use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
+use hairrecon_recon::pipeline::load_points;
+use hairrecon_recon::progress::Progress;
+use hairrecon_recon::roots::{sample_roots, Scalp};
+
+struct Quiet;
+
+impl Progress for Quiet {
+    fn update(&self, _stage: &str, _fraction: f32, _message: &str) {}
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 3 {
+        eprintln!("usage: init_stage CAPTURE DIR OUT [key=value ...]");
+        std::process::exit(2);
+    }
+    let capture = Capture::load(&args[0])?;
+    let dir = PathBuf::from(&args[1]);
+    let out = PathBuf::from(&args[2]);
+    std::fs::create_dir_all(&out)?;
+    let (mut guides_n, mut children_n, mut gt_every) = (2000usize, 10000usize, 1usize);
+    let mut lp = LaplaceParams::default();
+    let mut gp = GrowParams::default();
+    for kv in &args[3..] {
+        let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
+        let f: f32 = v.parse()?;
+        match k {
+            "guides" => guides_n = f as usize,
+            "children" => children_n = f as usize,
+            "voxel" => lp.voxel = f,
+            "max_point_dist" => lp.max_point_dist = f,
+            "scalp_dist" => lp.scalp_dist = f,
+            "band" => lp.band = f,
+            "outer_margin" => lp.outer_margin = f,
+            "step" => gp.step = f,
+            "max_gap" => gp.max_gap = f,
+            "exit_cos" => gp.exit_cos = f,
+            "max_length" => gp.max_length = f,
+            "k" => gp.k = f as usize,
+            "gt_every" => gt_every = (f as usize).max(1),
+            _ => return Err(format!("unknown key {k}").into()),
+        }
+    }
+    let raw = Bvh::new(read_mesh(&capture.raw_mesh)?);
+    let scalp = Scalp::new(read_mesh(capture.scalp_mesh.as_ref().ok_or("no scalp")?)?)?;
+    let inner = match &capture.head_mesh {
+        Some(h) => Bvh::new(read_mesh(h)?),
+        None => scalp.bvh().clone(),
+    };
+    let points = load_points(&dir, "points_directed.ply")?;
+    let t = Instant::now();
+    let (flow, lstats) = solve_flow(&raw, &inner, &scalp, &points, &lp, &Quiet)?;
+    let t_flow = t.elapsed().as_secs_f64();
+    let groots = sample_roots(&scalp, guides_n, 0)?;
+    let croots = sample_roots(&scalp, children_n, 1)?;
+    let t = Instant::now();
+    let (guides, gstats) = grow_guides(&flow, &groots, &gp, &Quiet)?;
+    let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &Quiet)?;
+    let t_grow = t.elapsed().as_secs_f64();
+    println!("laplace: {lstats:?} ({t_flow:.1} s)");
+    println!("grow: {gstats:?} ({t_grow:.1} s)");
+    write_strands(&out.join("guides.hair"), &guides)?;
+    write_strands(&out.join("strands.hair"), &children)?;
+    if let Some(g) = &capture.gt_strands {
+        let gt = read_strands(g)?;
+        let gt = gt.select(&(0..gt.num_strands()).step_by(gt_every).collect::<Vec<_>>());
+        let opts = MetricOptions {
+            step: 0.001,
+            thresholds: vec![
+                Threshold { dist: 0.001, angle_deg: 10.0 },
+                Threshold { dist: 0.002, angle_deg: 20.0 },
+                Threshold { dist: 0.003, angle_deg: 30.0 },
+            ],
+        };
+        let t = Instant::now();
+        let r = evaluate(&children, &gt, &opts)?;
+        println!("children vs gt ({:.1} s):\n{}", t.elapsed().as_secs_f64(), r.table());
+    }
+    Ok(())
+}
