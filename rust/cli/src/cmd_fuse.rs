@@ -3,11 +3,17 @@
 //! This makes a stand-in for a photogrammetry mesh from depth maps (see
 //! `hairrecon_recon::raw_mesh`). The synthetic renderer (`scripts/render_synthetic.py`) calls it
 //! with `--depth-dir fusion/depth`, its depth maps of the hair volume.
+//!
+//! `--check-gt` then measures the mesh against the ground-truth hair that the photographs see
+//! (issue 3's criterion, `hairrecon_recon::raw_mesh::check`): ground-truth strand points seen in
+//! two or more views by the views' `gt_depth` (the photographs' own depth), their distance to the
+//! mesh, unsigned and signed. `--no-fuse --check-gt` measures an existing mesh.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use hairrecon_recon::progress::Progress;
+use hairrecon_recon::raw_mesh::check::{check_seen_hair, CheckOptions};
 use hairrecon_recon::raw_mesh::{self, FuseOptions};
 use indicatif::ProgressBar;
 
@@ -33,6 +39,10 @@ pub struct FuseDepthArgs {
     /// than they are, like the synthetic renderer's fusion depth maps).
     #[arg(long, default_value_t = 0.0)]
     pub inset_mm: f32,
+    /// Fuse each voxel's per-view truncated distances by this quantile (0.5: median) instead of
+    /// their mean.
+    #[arg(long)]
+    pub quantile: Option<f32>,
     /// Folder of depth maps named <view>.exr, relative to the capture (default: each view's gt_depth).
     #[arg(long)]
     pub depth_dir: Option<PathBuf>,
@@ -42,6 +52,29 @@ pub struct FuseDepthArgs {
     /// Afterwards, load the whole capture with the validating loader and fail if it does not load.
     #[arg(long)]
     pub check_capture: bool,
+    /// Do not fuse: use the existing mesh (--out, else the capture's raw mesh), e.g. with --check-gt.
+    #[arg(long)]
+    pub no_fuse: bool,
+    /// Afterwards, measure the mesh against the ground-truth strand points seen in the photographs
+    /// (gt_strands, and each view's gt_depth) and print the figures.
+    #[arg(long)]
+    pub check_gt: bool,
+    /// --check-gt: a point is seen in a view when its depth is within this of the gt depth map (mm).
+    #[arg(long, default_value_t = 1.0)]
+    pub check_depth_tol_mm: f32,
+    /// --check-gt: count points seen in at least this many views.
+    #[arg(long, default_value_t = 2)]
+    pub check_min_views: usize,
+    /// --check-gt: the distance to the mesh that the criterion counts within (mm).
+    #[arg(long, default_value_t = 3.0)]
+    pub check_within_mm: f32,
+    /// --check-gt: test every this-many-th ground-truth point.
+    #[arg(long, default_value_t = 1)]
+    pub check_step: usize,
+    /// --check-gt: write the seen points as text lines "x y z signed_distance" (metres; + = the
+    /// mesh is in front of the point) to this file.
+    #[arg(long)]
+    pub check_dump: Option<PathBuf>,
 }
 
 /// Shows a stage's progress on an indicatif bar (per mille).
@@ -56,22 +89,60 @@ impl Progress for BarProgress {
 }
 
 pub fn run(args: FuseDepthArgs) -> CmdResult {
+    let json = if args.capture.is_dir() { args.capture.join("capture.json") } else { args.capture.clone() };
+    let spec: hairrecon_core::capture::CaptureSpec = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
+    let dir = json.parent().map(PathBuf::from).unwrap_or_default();
+    let out = args.out.clone().unwrap_or_else(|| dir.join(&spec.raw_mesh));
+    if !args.no_fuse {
+        fuse(&args, &out)?;
+    }
+    if args.check_capture {
+        let c = hairrecon_core::capture::Capture::load(&args.capture)?;
+        eprintln!("fuse-depth: the capture loads: {} views, raw mesh {}", c.views.len(), c.raw_mesh.display());
+    }
+    if args.check_gt {
+        let gt = spec.gt_strands.as_ref().ok_or("--check-gt: the capture names no gt_strands")?;
+        check_gt(&args, &out, &dir.join(gt))?;
+    }
+    Ok(())
+}
+
+/// Measures the mesh at `mesh` against the ground-truth points seen in the photographs.
+fn check_gt(args: &FuseDepthArgs, mesh: &std::path::Path, gt: &std::path::Path) -> CmdResult {
+    use std::io::Write;
+    let t0 = Instant::now();
+    let mesh = hairrecon_core::read_mesh(mesh)?;
+    let strands = hairrecon_core::read_strands(gt)?;
+    let points: Vec<_> = strands.points().iter().step_by(args.check_step.max(1)).copied().collect();
+    let views: Vec<_> = raw_mesh::load_depth_views(&args.capture, None)?.into_iter().map(|(_, v)| v).collect();
+    let opts = CheckOptions {
+        depth_tolerance: args.check_depth_tol_mm * 1e-3,
+        min_views: args.check_min_views,
+        within: args.check_within_mm * 1e-3,
+    };
+    let (report, per_point) = check_seen_hair(&mesh, &points, &views, &opts);
+    eprintln!("check-gt: {report} ({:.1} s)", t0.elapsed().as_secs_f32());
+    if let Some(path) = &args.check_dump {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+        for (i, d) in per_point {
+            let p = points[i];
+            writeln!(w, "{} {} {} {}", p.x, p.y, p.z, d)?;
+        }
+        w.flush()?;
+    }
+    Ok(())
+}
+
+fn fuse(args: &FuseDepthArgs, out: &std::path::Path) -> CmdResult {
     let t0 = Instant::now();
     let views = raw_mesh::load_depth_views(&args.capture, args.depth_dir.as_deref())?;
-    let out = match args.out {
-        Some(p) => p,
-        None => {
-            let json = if args.capture.is_dir() { args.capture.join("capture.json") } else { args.capture.clone() };
-            let spec: hairrecon_core::capture::CaptureSpec = serde_json::from_str(&std::fs::read_to_string(&json)?)?;
-            json.parent().map(|d| d.join(&spec.raw_mesh)).unwrap_or(spec.raw_mesh)
-        }
-    };
     let opts = FuseOptions {
         voxel: args.voxel_mm * 1e-3,
         truncation_voxels: args.truncation_voxels,
         smooth_iterations: args.smooth,
         min_component_triangles: args.min_component,
         inset: args.inset_mm * 1e-3,
+        quantile: args.quantile,
         ..FuseOptions::default()
     };
     let depth: Vec<_> = views.into_iter().map(|(_, v)| v).collect();
@@ -79,7 +150,7 @@ pub fn run(args: FuseDepthArgs) -> CmdResult {
     let progress = BarProgress(bar);
     let mesh = raw_mesh::fuse_depth_maps(&depth, &opts, &progress)?;
     progress.0.finish_and_clear();
-    hairrecon_core::formats::write_mesh(&out, &mesh)?;
+    hairrecon_core::formats::write_mesh(out, &mesh)?;
     let (lo, hi) = mesh.bbox();
     eprintln!(
         "fuse-depth: {} views, {} vertices, {} triangles, box {:.3?}..{:.3?} m, {:.1} s -> {}",
@@ -91,9 +162,5 @@ pub fn run(args: FuseDepthArgs) -> CmdResult {
         t0.elapsed().as_secs_f32(),
         out.display()
     );
-    if args.check_capture {
-        let c = hairrecon_core::capture::Capture::load(&args.capture)?;
-        eprintln!("fuse-depth: the capture loads: {} views, raw mesh {}", c.views.len(), c.raw_mesh.display());
-    }
     Ok(())
 }

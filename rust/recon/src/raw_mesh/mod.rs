@@ -10,6 +10,7 @@
 //! In: a list of [`DepthView`]s (or a capture folder and where its depth maps are, see
 //! [`load_depth_views`]). Out: a [`TriMesh`] with vertex normals pointing out of the surface.
 
+pub mod check;
 pub mod surface;
 pub mod tsdf;
 
@@ -41,6 +42,9 @@ pub struct FuseOptions {
     /// renderer draws strands as ribbons of a larger radius, so that they close into a surface)
     /// fuse to a surface that far outside them; the inset takes it back.
     pub inset: f32,
+    /// Per voxel, fuse the views' truncated distances by this quantile instead of their mean
+    /// (default `None`: the mean, Curless & Levoy).
+    pub quantile: Option<f32>,
 }
 
 impl Default for FuseOptions {
@@ -52,6 +56,7 @@ impl Default for FuseOptions {
             min_component_triangles: 200,
             max_voxels: 400_000_000,
             inset: 0.0,
+            quantile: None,
         }
     }
 }
@@ -148,6 +153,11 @@ pub fn fuse_depth_maps(views: &[DepthView], opts: &FuseOptions, progress: &dyn P
     if !opts.inset.is_finite() {
         return Err(FuseError::Options(format!("the inset must be a finite distance, got {}", opts.inset)));
     }
+    if let Some(q) = opts.quantile {
+        if !(0.0..=1.0).contains(&q) {
+            return Err(FuseError::Options(format!("the quantile must be in [0, 1], got {q}")));
+        }
+    }
     if !(opts.truncation_voxels.is_finite() && opts.truncation_voxels >= 1.0) {
         return Err(FuseError::Options(format!(
             "the truncation must be at least one voxel, got {}",
@@ -163,7 +173,7 @@ pub fn fuse_depth_maps(views: &[DepthView], opts: &FuseOptions, progress: &dyn P
         return Err(FuseError::TooLarge { voxels, max: opts.max_voxels });
     }
     let mut grid = TsdfGrid::new(lo, hi, opts.voxel, trunc);
-    grid.integrate(views, progress)?;
+    grid.integrate_quantile(views, opts.quantile, progress)?;
     progress.check()?;
     progress.update("surface", 0.0, "surface nets");
     let (mut vertices, triangles) = surface::surface_nets(&grid);

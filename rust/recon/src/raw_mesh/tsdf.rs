@@ -20,7 +20,8 @@ use rayon::prelude::*;
 use crate::progress::{Cancelled, Progress};
 
 /// One depth map and its camera. `depth[y * width + x]` is the depth along the optical axis in
-/// metres of the pixel centred at (x, y); 0 (or any non-positive or non-finite value) = no surface.
+/// metres of the pixel centred at (x, y); 0 = the pixel saw no surface (empty space along its ray);
+/// negative or not finite = unknown (the pixel does not take part).
 #[derive(Debug, Clone)]
 pub struct DepthView {
     pub camera: Camera,
@@ -28,9 +29,10 @@ pub struct DepthView {
 }
 
 impl DepthView {
-    /// The depth at the pixel nearest to `pixel`; `None` outside the image.
+    /// The depth at the pixel nearest to `pixel`: `Some(0.0)` where the pixel saw nothing,
+    /// `None` outside the image or where the pixel's depth is unknown (negative or not finite).
     #[inline]
-    fn sample(&self, pixel: Vec2) -> Option<f32> {
+    pub(crate) fn sample(&self, pixel: Vec2) -> Option<f32> {
         if !self.camera.contains(pixel) {
             return None;
         }
@@ -38,7 +40,7 @@ impl DepthView {
         let y = (pixel.y + 0.5) as usize;
         let w = self.camera.width() as usize;
         let d = self.depth[y * w + x];
-        Some(if d.is_finite() && d > 0.0 { d } else { 0.0 })
+        (d.is_finite() && d >= 0.0).then_some(d)
     }
 }
 
@@ -84,6 +86,18 @@ impl TsdfGrid {
     /// Fuses all views into the grid, one z-slice per task. Reports progress per slice and stops
     /// with [`Cancelled`] when asked (the grid is then partly fused).
     pub fn integrate(&mut self, views: &[DepthView], progress: &dyn Progress) -> Result<(), Cancelled> {
+        self.integrate_quantile(views, None, progress)
+    }
+
+    /// Like [`Self::integrate`], but with `quantile = Some(q)` each voxel takes the q-quantile of
+    /// its per-view truncated distances instead of their mean (0.5: the median), which a few
+    /// views that see through a sparse structure, or past it at a grazing angle, cannot move.
+    pub fn integrate_quantile(
+        &mut self,
+        views: &[DepthView],
+        quantile: Option<f32>,
+        progress: &dyn Progress,
+    ) -> Result<(), Cancelled> {
         let (nx, ny, nz) = (self.dims.x as usize, self.dims.y as usize, self.dims.z as usize);
         let slice = nx * ny;
         let done = std::sync::atomic::AtomicUsize::new(0);
@@ -91,10 +105,12 @@ impl TsdfGrid {
         self.tsdf.par_chunks_mut(slice).zip(self.weight.par_chunks_mut(slice)).enumerate().try_for_each(
             |(k, (tsdf, weight))| {
                 progress.check()?;
+                let mut values = Vec::with_capacity(views.len());
                 for j in 0..ny {
                     for i in 0..nx {
                         let p = origin + voxel * Vec3::new(i as f32, j as f32, k as f32);
                         let (mut sum, mut wsum) = (0.0f32, 0.0f32);
+                        values.clear();
                         for v in views {
                             let pc = v.camera.to_camera(p);
                             if pc.z <= 1e-6 {
@@ -112,10 +128,17 @@ impl TsdfGrid {
                             };
                             sum += value;
                             wsum += 1.0;
+                            values.push(value);
                         }
                         let idx = i + nx * j;
                         if wsum > 0.0 {
-                            tsdf[idx] = sum / wsum;
+                            tsdf[idx] = match quantile {
+                                None => sum / wsum,
+                                Some(q) => {
+                                    let r = ((values.len() - 1) as f32 * q).round() as usize;
+                                    *values.select_nth_unstable_by(r, f32::total_cmp).1
+                                }
+                            };
                             weight[idx] = wsum;
                         }
                     }
@@ -154,5 +177,46 @@ mod tests {
                 assert!((g.tsdf[idx] - expected).abs() < 1e-4, "z {z}: {} vs {expected}", g.tsdf[idx]);
             }
         }
+    }
+
+    /// Unknown pixels (negative depth) leave the voxels on their rays unobserved, where a pixel
+    /// that saw nothing (0) marks them empty.
+    #[test]
+    fn unknown_pixels_do_not_take_part() {
+        let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.0), Vec3::ZERO, Vec3::Y, 0.8, 64, 64).unwrap();
+        let (lo, hi) = (Vec3::new(-0.1, -0.1, -0.05), Vec3::new(0.1, 0.1, 0.05));
+        let mut g = TsdfGrid::new(lo, hi, 0.01, 0.03);
+        g.integrate(&[DepthView { camera: cam, depth: vec![-1.0; 64 * 64] }], &NoProgress).unwrap();
+        assert!(g.weight.iter().all(|&w| w == 0.0));
+        let mut g = TsdfGrid::new(lo, hi, 0.01, 0.03);
+        g.integrate(&[DepthView { camera: cam, depth: vec![0.0; 64 * 64] }], &NoProgress).unwrap();
+        assert!(g.weight.iter().all(|&w| w == 1.0) && g.tsdf.iter().all(|&d| d == 1.0));
+    }
+
+    /// Three views of the plane z = 0 from above, one of which sees 2 cm past it (a gap in a sparse
+    /// surface): the median keeps the zero crossing at the plane, the mean moves it down.
+    #[test]
+    fn the_median_ignores_one_view_that_sees_through() {
+        let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.0), Vec3::ZERO, Vec3::Y, 0.8, 64, 64).unwrap();
+        let views: Vec<DepthView> =
+            [1.0, 1.0, 1.02].into_iter().map(|d| DepthView { camera: cam, depth: vec![d; 64 * 64] }).collect();
+        let zero_crossing = |q: Option<f32>| {
+            let mut g = TsdfGrid::new(Vec3::new(-0.05, -0.05, -0.05), Vec3::new(0.05, 0.05, 0.05), 0.005, 0.03);
+            g.integrate_quantile(&views, q, &NoProgress).unwrap();
+            let (i, j) = (g.dims.x / 2, g.dims.y / 2);
+            (1..g.dims.z)
+                .find_map(|k| {
+                    let (a, b) = (g.tsdf[g.index(i, j, k - 1)], g.tsdf[g.index(i, j, k)]);
+                    (a < 0.0 && b >= 0.0).then(|| {
+                        let (za, zb) = (g.position(i, j, k - 1).z, g.position(i, j, k).z);
+                        za + (zb - za) * a / (a - b)
+                    })
+                })
+                .unwrap()
+        };
+        let median = zero_crossing(Some(0.5));
+        let mean = zero_crossing(None);
+        assert!(median.abs() < 1e-4, "median zero crossing at z = {median}");
+        assert!(mean < -0.005, "mean zero crossing at z = {mean}");
     }
 }
