@@ -162,9 +162,14 @@ pub struct Bvh {
     mesh: TriMesh,
     nodes: Vec<Node>,
     order: Vec<u32>,
-    /// Angle-weighted pseudo-normals for vertices and for edges (keyed by sorted vertex pair).
+    /// Angle-weighted pseudo-normals for vertices and for edges (keyed by sorted vertex pair), with
+    /// the number of faces at each edge.
     vertex_pn: Vec<Vec3>,
-    edge_pn: std::collections::HashMap<(u32, u32), Vec3>,
+    edge_pn: std::collections::HashMap<(u32, u32), (Vec3, u32)>,
+    /// Vertices on an edge with a single face (the rim of an open mesh).
+    boundary_vertex: Vec<bool>,
+    /// Each vertex's first vertex at the same position (the key of the two tables above).
+    weld: Vec<u32>,
 }
 
 const LEAF_SIZE: usize = 4;
@@ -222,11 +227,17 @@ impl Bvh {
             stack.push((left, s, mid));
             stack.push((left + 1, mid, e));
         }
+        // Vertices at the same position are one for the pseudo-normals and the rim (meshes from
+        // Blender split vertices at UV seams, which would otherwise look like open edges).
+        let mut first: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+        let weld: Vec<u32> = (0..mesh.vertices.len() as u32)
+            .map(|i| *first.entry(mesh.vertices[i as usize].to_array().map(f32::to_bits)).or_insert(i))
+            .collect();
         // Angle-weighted pseudo-normals.
         let mut vertex_pn = vec![Vec3::ZERO; mesh.vertices.len()];
         let mut edge_pn = std::collections::HashMap::with_capacity(n * 3 / 2);
         for i in 0..n {
-            let t = mesh.triangles[i];
+            let t = mesh.triangles[i].map(|v| weld[v as usize]);
             let fnrm = mesh.face_normal(i);
             let c = mesh.corners(i);
             for k in 0..3 {
@@ -236,10 +247,19 @@ impl Bvh {
                 let angle = (b - a).normalize_or_zero().dot((d - a).normalize_or_zero()).clamp(-1.0, 1.0).acos();
                 vertex_pn[t[k] as usize] += angle * fnrm;
                 let (x, y) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
-                *edge_pn.entry((x, y)).or_insert(Vec3::ZERO) += fnrm;
+                let e = edge_pn.entry((x, y)).or_insert((Vec3::ZERO, 0));
+                e.0 += fnrm;
+                e.1 += 1;
             }
         }
-        Self { mesh, nodes, order, vertex_pn, edge_pn }
+        let mut boundary_vertex = vec![false; mesh.vertices.len()];
+        for (&(a, b), &(_, faces)) in &edge_pn {
+            if faces == 1 {
+                boundary_vertex[a as usize] = true;
+                boundary_vertex[b as usize] = true;
+            }
+        }
+        Self { mesh, nodes, order, vertex_pn, edge_pn, boundary_vertex, weld }
     }
 
     pub fn mesh(&self) -> &TriMesh {
@@ -322,17 +342,43 @@ impl Bvh {
 
     /// Signed distance to the mesh within `max_dist`: negative inside (behind the outward
     /// pseudo-normal of the closest feature), positive outside. `None` if nothing is within `max_dist`.
+    ///
+    /// An open mesh has no inside beyond its rim: when the closest feature is a boundary edge or a
+    /// boundary vertex (an edge with one face), the point is outside (for example the space below
+    /// a head mesh cut off at the neck, which the pseudo-normals of the rim would call inside).
     pub fn signed_distance(&self, p: Vec3, max_dist: f32) -> Option<f32> {
         let cp = self.closest_point(p, max_dist)?;
+        if self.on_boundary(&cp) {
+            return Some(cp.distance);
+        }
         let n = self.pseudo_normal(&cp);
         let s = if (p - cp.point).dot(n) < 0.0 { -1.0 } else { 1.0 };
         Some(s * cp.distance)
     }
 
+    /// Whether a closest point lies on the mesh's rim (a boundary edge or vertex), not inside a face.
+    fn on_boundary(&self, cp: &ClosestPoint) -> bool {
+        let t = self.mesh.triangles[cp.triangle as usize].map(|v| self.weld[v as usize]);
+        let eps = 1e-6;
+        let zero: Vec<usize> = (0..3).filter(|&k| cp.bary[k] <= eps).collect();
+        match zero.len() {
+            0 => false,
+            1 => {
+                let k = zero[0];
+                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                self.edge_pn.get(&(a.min(b), a.max(b))).is_some_and(|e| e.1 == 1)
+            }
+            _ => {
+                let k = (0..3).find(|k| !zero.contains(k)).unwrap_or(0);
+                self.boundary_vertex[t[k] as usize]
+            }
+        }
+    }
+
     /// Outward pseudo-normal at a closest point: the face normal inside a face, the edge or vertex
     /// pseudo-normal on an edge or a corner.
     pub fn pseudo_normal(&self, cp: &ClosestPoint) -> Vec3 {
-        let t = self.mesh.triangles[cp.triangle as usize];
+        let t = self.mesh.triangles[cp.triangle as usize].map(|v| self.weld[v as usize]);
         let eps = 1e-6;
         let zero: Vec<usize> = (0..3).filter(|&k| cp.bary[k] <= eps).collect();
         match zero.len() {
@@ -340,7 +386,7 @@ impl Bvh {
             1 => {
                 let k = zero[0];
                 let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                self.edge_pn.get(&(a.min(b), a.max(b))).copied().unwrap_or(Vec3::ZERO)
+                self.edge_pn.get(&(a.min(b), a.max(b))).map_or(Vec3::ZERO, |e| e.0)
             }
             _ => {
                 let k = (0..3).find(|k| !zero.contains(k)).unwrap_or(0);
@@ -527,6 +573,55 @@ mod tests {
         // Near a corner, the vertex pseudo-normal decides.
         assert!(bvh.signed_distance(Vec3::splat(0.6), 10.0).unwrap() > 0.0);
         assert!(bvh.signed_distance(Vec3::splat(0.45), 10.0).unwrap() < 0.0);
+    }
+
+    #[test]
+    fn open_mesh_has_no_inside_beyond_its_rim() {
+        // A sphere with its bottom cap removed (like a head cut at the neck).
+        let full = sphere(1.0, 32, 16);
+        let keep: Vec<[u32; 3]> = full
+            .triangles
+            .iter()
+            .copied()
+            .filter(|t| t.iter().map(|&i| full.vertices[i as usize].z).sum::<f32>() / 3.0 > -0.7)
+            .collect();
+        let bvh = Bvh::new(TriMesh::new(full.vertices.clone(), keep, None, None).unwrap());
+        // Inside, far from the rim: negative, as for the closed sphere.
+        assert!(bvh.signed_distance(Vec3::new(0.0, 0.0, 0.2), 10.0).unwrap() < 0.0);
+        assert!(bvh.signed_distance(Vec3::new(0.3, 0.0, -0.3), 10.0).unwrap() < 0.0);
+        // Below the cut, under the opening: the closest point is on the rim, so outside. The closed
+        // sphere's pseudo-normals would call (0, 0, -1.5) inside of the rim's faces.
+        for p in [Vec3::new(0.0, 0.0, -1.5), Vec3::new(0.2, 0.1, -2.0), Vec3::new(0.0, 0.0, -0.95)] {
+            let sd = bvh.signed_distance(p, 10.0).unwrap();
+            assert!(sd > 0.0, "{p:?} sd={sd}");
+        }
+        // Outside beside the sphere: positive.
+        assert!(bvh.signed_distance(Vec3::new(1.5, 0.0, 0.0), 10.0).unwrap() > 0.0);
+
+        // A closed sphere split along a seam (every triangle with its own three vertices, as a PLY
+        // exported with per-face UVs) is still closed: inside stays inside right next to an edge.
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        for tri in &full.triangles {
+            let b = v.len() as u32;
+            v.extend(tri.iter().map(|&i| full.vertices[i as usize]));
+            t.push([b, b + 1, b + 2]);
+        }
+        let split = Bvh::new(TriMesh::new(v, t, None, None).unwrap());
+        let closed = Bvh::new(full);
+        let mut s = 7u32;
+        for _ in 0..200 {
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            let u = (s >> 8) as f32 / (1 << 24) as f32;
+            s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+            let w = (s >> 8) as f32 / (1 << 24) as f32;
+            let dir = Vec3::new((u * 6.283).cos() * (1.0 - w * w).sqrt(), (u * 6.283).sin() * (1.0 - w * w).sqrt(), w);
+            for r in [0.97, 1.03] {
+                let p = dir * r;
+                let (a, b) = (split.signed_distance(p, 10.0).unwrap(), closed.signed_distance(p, 10.0).unwrap());
+                assert!((a - b).abs() < 1e-6, "{p:?}: split {a} closed {b}");
+            }
+        }
     }
 
     #[test]

@@ -16,7 +16,7 @@ use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
 use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
 use hairrecon_core::Bvh;
-use hairrecon_recon::grow::{grow_guides, interpolate_children, GrowParams};
+use hairrecon_recon::grow::{grow_guides, grow_one, interpolate_children, GrowParams, Stop};
 use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
 use hairrecon_recon::pipeline::load_points;
 use hairrecon_recon::progress::Progress;
@@ -52,9 +52,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "scalp_dist" => lp.scalp_dist = f,
             "band" => lp.band = f,
             "outer_margin" => lp.outer_margin = f,
+            "scalp_tangent" => lp.scalp_tangent = f,
             "step" => gp.step = f,
+            "grow_outer" => gp.outer_margin = f,
             "max_gap" => gp.max_gap = f,
             "exit_cos" => gp.exit_cos = f,
+            "exit_after" => gp.exit_after = f,
+            "loop_window" => gp.loop_window = f,
+            "loop_distance" => gp.loop_distance = f,
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
             "gt_every" => gt_every = (f as usize).max(1),
@@ -68,6 +73,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => scalp.bvh().clone(),
     };
     let points = load_points(&dir, "points_directed.ply")?;
+    if std::env::var_os("SD_LOW").is_some() {
+        let mut sd: Vec<f32> = points
+            .positions
+            .iter()
+            .filter(|p| p.z < -0.3)
+            .step_by(50)
+            .map(|p| raw.signed_distance(*p, 0.04).unwrap_or(1.0))
+            .collect();
+        sd.sort_by(f32::total_cmp);
+        let q = |f: f32| sd[((sd.len() - 1) as f32 * f) as usize];
+        println!("sd of low points (n {}): q10 {} q50 {} q90 {}", sd.len(), q(0.1), q(0.5), q(0.9));
+    }
     let t = Instant::now();
     let (flow, lstats) = solve_flow(&raw, &inner, &scalp, &points, &lp, &Quiet)?;
     let t_flow = t.elapsed().as_secs_f64();
@@ -78,8 +95,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &Quiet)?;
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
+    // Where the guides stop, by reason: a histogram of the tip height (10 cm bins from -0.5 m).
+    let mut hist = std::collections::BTreeMap::<String, [u32; 8]>::new();
+    for i in 0..groots.len() {
+        let (pts, stop) = grow_one(&flow, groots.positions[i], groots.growth[i], &gp);
+        let z = pts.last().map_or(0.0, |p| p.z);
+        let b = (((z + 0.5) / 0.1).floor().max(0.0) as usize).min(7);
+        let key = match stop {
+            Stop::Outside => "outside",
+            Stop::NotHair => "not_hair",
+            Stop::Grid => "grid",
+            Stop::MaxLength => "max_length",
+            Stop::Loop => "loop",
+        };
+        hist.entry(key.into()).or_default()[b] += 1;
+    }
+    for (k, h) in &hist {
+        println!("  tips {k:>10} by z from -0.5 m: {h:?}");
+    }
     println!("grow: {gstats:?} ({t_grow:.1} s)");
     write_strands(&out.join("guides.hair"), &guides)?;
+    flow.save(&out.join("flow.bin"))?;
     write_strands(&out.join("strands.hair"), &children)?;
     if let Some(g) = &capture.gt_strands {
         let gt = read_strands(g)?;

@@ -44,6 +44,15 @@ pub struct GrowParams {
     pub max_gap: f32,
     /// At the outer surface, growth ends when the flow points out of it with a cosine above this.
     pub exit_cos: f32,
+    /// Over the first this many metres of a strand the exit rule does not apply: the strand slides
+    /// along the outer surface instead. Near the scalp the hair layer is a voxel or two thick and
+    /// the flow there still leans out along S(p_s), while real hair turns to lie along the head.
+    pub exit_after: f32,
+    /// A strand that comes back within `loop_distance` of a point of its own at least `loop_window`
+    /// metres of arc earlier circles in a vortex of the field: growth ends and the circle is cut
+    /// off. A helical curl never comes back closer than its pitch (about a centimetre).
+    pub loop_window: f32,
+    pub loop_distance: f32,
 }
 
 impl Default for GrowParams {
@@ -55,7 +64,10 @@ impl Default for GrowParams {
             head_clearance: 0.001,
             k: 4,
             max_gap: 0.02,
-            exit_cos: 0.6,
+            exit_cos: 0.99,
+            exit_after: 0.0,
+            loop_window: 0.05,
+            loop_distance: 0.004,
         }
     }
 }
@@ -92,6 +104,8 @@ pub enum Stop {
     /// Out of the grid.
     Grid,
     MaxLength,
+    /// Circling without progress (see [`GrowParams::loop_window`]).
+    Loop,
 }
 
 /// How the guides stopped.
@@ -101,6 +115,7 @@ pub struct GrowStats {
     pub not_hair: u64,
     pub grid: u64,
     pub max_length: u64,
+    pub loops: u64,
     pub mean_length: f64,
 }
 
@@ -161,7 +176,7 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         if so > -0.5 * flow.grid.voxel {
             nrm = gradient(flow, &flow.sd_outer, p);
             let c = d.dot(nrm);
-            if c > params.exit_cos {
+            if c > params.exit_cos && s as f32 * params.step >= params.exit_after {
                 stop = Stop::Outside;
                 break;
             }
@@ -194,6 +209,16 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         prev = seg.normalize();
         p = q;
         pts.push(p);
+        let w = (params.loop_window / params.step).round() as usize;
+        if w >= 2 && pts.len() > w {
+            let d2 = params.loop_distance * params.loop_distance;
+            if let Some(back) = pts[..pts.len() - 1 - w].iter().position(|q| q.distance_squared(p) < d2) {
+                stop = Stop::Loop;
+                pts.truncate(back + 1);
+                gap = 0;
+                break;
+            }
+        }
     }
     if stop != Stop::MaxLength && gap > 0 {
         pts.truncate(pts.len().saturating_sub(gap).max(1));
@@ -226,6 +251,7 @@ pub fn grow_guides(
                 Stop::NotHair => stats.not_hair += 1,
                 Stop::Grid => stats.grid += 1,
                 Stop::MaxLength => stats.max_length += 1,
+                Stop::Loop => stats.loops += 1,
             }
             counts.push(g.len() as u32);
             points.extend(g);
@@ -315,4 +341,67 @@ pub fn straight_strands(roots: &Roots, length: f32, segments: usize) -> StrandSe
         }
     }
     StrandSet::new(points, vec![segments as u32 + 1; roots.len()]).unwrap_or_else(|_| StrandSet::empty())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::laplace::Grid;
+
+    /// A 20 cm box of hair (no head, outer surface far away) with `field(p)` per voxel.
+    fn flow(field: impl Fn(Vec3) -> Vec3) -> FlowField {
+        let voxel = 0.004;
+        let dims = [51, 51, 151];
+        let grid = Grid { origin: Vec3::new(-0.1, -0.1, -0.5), voxel, dims };
+        let n = grid.len();
+        let field = (0..n).map(|i| field(grid.centre(i))).collect();
+        FlowField { grid, field, sd_outer: vec![-0.05; n], sd_inner: vec![0.05; n], label: vec![1; n] }
+    }
+
+    #[test]
+    fn a_vortex_ends_as_a_loop_and_the_circle_is_cut() {
+        // Circles about the z axis: without the loop rule a strand circles until max_length.
+        let f = flow(|p| Vec3::new(-p.y, p.x, 0.0).normalize_or(Vec3::X));
+        let params = GrowParams::default();
+        let root = Vec3::new(0.02, 0.0, 0.0);
+        let (pts, stop) = grow_one(&f, root, Vec3::Y, &params);
+        assert_eq!(stop, Stop::Loop);
+        // A 2 cm radius circle is 12.6 cm around: the strand is cut back to where it came round.
+        let len: f32 = pts.windows(2).map(|w| w[0].distance(w[1])).sum();
+        assert!(len < 0.02, "kept {len} m of a vortex");
+        let (_, stop) = grow_one(&f, root, Vec3::Y, &GrowParams { loop_window: 0.0, ..params });
+        assert_eq!(stop, Stop::MaxLength);
+    }
+
+    #[test]
+    fn a_tight_helix_is_not_a_loop() {
+        // A helix of radius 5 mm and pitch 1 cm about the z axis, descending.
+        let pitch = 0.01f32;
+        let r = 0.005f32;
+        let f = flow(|p| {
+            let tangential = Vec3::new(-p.y, p.x, 0.0).normalize_or(Vec3::X) * (std::f32::consts::TAU * r);
+            (tangential - Vec3::Z * pitch).normalize()
+        });
+        let params = GrowParams { max_length: 0.3, ..GrowParams::default() };
+        let (pts, stop) = grow_one(&f, Vec3::new(r, 0.0, 0.0), Vec3::new(0.0, 0.95, -0.3), &params);
+        assert_eq!(stop, Stop::MaxLength, "{} points", pts.len());
+        assert!(pts.last().unwrap().z < -0.06);
+    }
+
+    #[test]
+    fn the_exit_rule_waits_for_exit_after() {
+        // Flow straight up (+z) through an outer surface at z = 0 (sd_outer = z): growth ends at the
+        // surface, unless the exit rule is held off, in which case the strand slides (and, with a
+        // purely normal flow, has nowhere to go but stays on the surface).
+        let mut f = flow(|_| Vec3::Z);
+        for i in 0..f.grid.len() {
+            f.sd_outer[i] = f.grid.centre(i).z;
+        }
+        let params = GrowParams::default();
+        let root = Vec3::new(0.0, 0.0, -0.05);
+        let (pts, stop) = grow_one(&f, root, Vec3::Z, &params);
+        assert_eq!(stop, Stop::Outside);
+        let top = pts.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+        assert!(top.abs() < 0.004, "stopped at z = {top}");
+    }
 }

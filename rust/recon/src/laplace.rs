@@ -111,18 +111,23 @@ pub struct LaplaceParams {
     pub max_iterations: usize,
     /// Relative residual at which CG stops.
     pub tolerance: f32,
+    /// How much of S(p_s)'s normal component the scalp condition drops, in [0, 1]: hair leaves the
+    /// pore along S but lies along the head a few millimetres above it, and a voxel next to the
+    /// scalp is 4 mm thick; 0 keeps S itself, 1 keeps only its tangential part.
+    pub scalp_tangent: f32,
 }
 
 impl Default for LaplaceParams {
     fn default() -> Self {
         Self {
-            voxel: 0.004,
+            voxel: 0.003,
             outer_margin: 0.004,
             max_point_dist: 0.015,
             scalp_dist: 0.012,
             band: 0.04,
             max_iterations: 400,
             tolerance: 1e-4,
+            scalp_tangent: 0.0,
         }
     }
 }
@@ -244,7 +249,8 @@ pub fn solve_flow(
         .filter(|&i| label[i] == 1)
         .filter_map(|i| {
             let sp = scalp_point(scalp, grid.centre(i), params.voxel)?;
-            Some((i, sp.growth))
+            let g = sp.growth - sp.normal * (sp.growth.dot(sp.normal) * params.scalp_tangent.clamp(0.0, 1.0));
+            Some((i, g.normalize_or(sp.growth)))
         })
         .collect();
     for (i, g) in scalp_fixed {
@@ -305,8 +311,14 @@ pub fn solve_flow(
             *o = acc;
         });
     };
+    // Fixed chunks summed in order: the same sums whatever the thread count or schedule.
     let dot3 = |a: &[Vec3], b: &[Vec3]| -> Vec3 {
-        a.par_iter().zip(b).map(|(x, y)| *x * *y).reduce(|| Vec3::ZERO, |p, q| p + q)
+        let parts: Vec<Vec3> = a
+            .par_chunks(4096)
+            .zip(b.par_chunks(4096))
+            .map(|(a, b)| a.iter().zip(b).fold(Vec3::ZERO, |acc, (x, y)| acc + *x * *y))
+            .collect();
+        parts.into_iter().fold(Vec3::ZERO, |acc, p| acc + p)
     };
     // Jacobi-preconditioned CG, the three components at once.
     let m = free.len();
