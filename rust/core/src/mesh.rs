@@ -615,7 +615,11 @@ mod tests {
             let u = (s >> 8) as f32 / (1 << 24) as f32;
             s = s.wrapping_mul(1664525).wrapping_add(1013904223);
             let w = (s >> 8) as f32 / (1 << 24) as f32;
-            let dir = Vec3::new((u * 6.283).cos() * (1.0 - w * w).sqrt(), (u * 6.283).sin() * (1.0 - w * w).sqrt(), w);
+            let dir = Vec3::new(
+                (u * std::f32::consts::TAU).cos() * (1.0 - w * w).sqrt(),
+                (u * std::f32::consts::TAU).sin() * (1.0 - w * w).sqrt(),
+                w,
+            );
             for r in [0.97, 1.03] {
                 let p = dir * r;
                 let (a, b) = (split.signed_distance(p, 10.0).unwrap(), closed.signed_distance(p, 10.0).unwrap());

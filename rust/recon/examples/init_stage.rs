@@ -114,9 +114,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("  tips {k:>10} by z from -0.5 m: {h:?}");
     }
     println!("grow: {gstats:?} ({t_grow:.1} s)");
-    write_strands(&out.join("guides.hair"), &guides)?;
+    write_strands(out.join("guides.hair"), &guides)?;
     flow.save(&out.join("flow.bin"))?;
-    write_strands(&out.join("strands.hair"), &children)?;
+    write_strands(out.join("strands.hair"), &children)?;
     if let Some(g) = &capture.gt_strands {
         let gt = read_strands(g)?;
         let gt = gt.select(&(0..gt.num_strands()).step_by(gt_every).collect::<Vec<_>>());
