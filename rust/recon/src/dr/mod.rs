@@ -16,6 +16,7 @@
 //! - [`children`]: children as a linear function of the guides, for the guide stage.
 //! - [`optimize`](mod@optimize): the hierarchy (guides, then children), random views per step,
 //!   rayon over views, and the final simulation-ready pass.
+//! - [`report`]: the loss curves as `loss.csv` and `loss.png`.
 //!
 //! Measured (first version):
 //! - Synthetic scene of `tests/dr.rs` (240 strands on a 9 cm sphere, 8 views of 160 px, strands cut
@@ -38,6 +39,7 @@ pub mod children;
 pub mod losses;
 pub mod optimize;
 pub mod reparam;
+pub mod report;
 
 use glam::{Vec2, Vec3};
 use hairrecon_core::capture::Capture;
@@ -47,9 +49,9 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::orient2d::{GrayImage, Orient2dError, OrientationMap};
-use crate::progress::Cancelled;
+use crate::progress::{Cancelled, Progress};
 
-pub use losses::LossWeights;
+pub use losses::{LossTerms, LossWeights};
 pub use optimize::{finalize, optimize};
 pub use reparam::KnnKey;
 
@@ -149,13 +151,21 @@ impl DrTargets {
     /// Targets from a capture and its orientation maps (one per view, as [`crate::orient2d`] or
     /// [`crate::pipeline::load_orient2d`] give them). The mask of a view is its hair mask (as
     /// coverage, the luminance in [0, 1]); without one, pixels with orientation confidence above 0
-    /// count as hair. With `head`, strands behind the head are hidden.
-    pub fn from_capture(capture: &Capture, maps: &[OrientationMap], head: Option<&Bvh>) -> Result<Self, DrError> {
+    /// count as hair. With `head`, strands behind the head are hidden. Reports per view as stage
+    /// "dr" and stops when `progress` is cancelled.
+    pub fn from_capture(
+        capture: &Capture,
+        maps: &[OrientationMap],
+        head: Option<&Bvh>,
+        progress: &dyn Progress,
+    ) -> Result<Self, DrError> {
         if maps.len() != capture.views.len() {
             return Err(DrError::MapCount(capture.views.len(), maps.len()));
         }
         let mut views = Vec::with_capacity(maps.len());
         for (i, (v, m)) in capture.views.iter().zip(maps).enumerate() {
+            progress.check()?;
+            progress.update("dr", 0.0, &format!("targets: view {}/{}", i + 1, maps.len()));
             let mask = match &v.mask {
                 Some(p) => GrayImage::load(p)?.data,
                 None => m.confidence.iter().map(|&c| if c > 0.0 { 1.0 } else { 0.0 }).collect(),
@@ -207,6 +217,8 @@ pub struct DrOptions {
     pub project_every: usize,
     /// Resample every strand to equal segment lengths at the end.
     pub equalize_at_end: bool,
+    /// Relative residual at which the conjugate-gradient solves of the reparameterization stop.
+    pub cg_tolerance: f32,
     pub weights: LossWeights,
     pub seed: u64,
 }
@@ -214,8 +226,8 @@ pub struct DrOptions {
 impl Default for DrOptions {
     fn default() -> Self {
         Self {
-            iterations_guides: 100,
-            iterations_children: 50,
+            iterations_guides: 60,
+            iterations_children: 20,
             lr: 2e-3,
             lambda: 10.0,
             k_neighbors: 10,
@@ -231,10 +243,41 @@ impl Default for DrOptions {
             head_clearance: 0.001,
             project_every: 10,
             equalize_at_end: true,
+            cg_tolerance: 1e-3,
             weights: LossWeights::default(),
             seed: 0,
         }
     }
+}
+
+/// A stage of the hierarchy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DrStage {
+    /// Guides optimized, children following them.
+    Guides,
+    /// Every child on its own.
+    Children,
+}
+
+impl std::fmt::Display for DrStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            DrStage::Guides => "guides",
+            DrStage::Children => "children",
+        })
+    }
+}
+
+/// The loss of one step (before the step, in the views it rendered).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LossRecord {
+    pub stage: DrStage,
+    /// Step within the stage, from 0.
+    pub iteration: usize,
+    pub terms: LossTerms,
+    /// Wall time of the step, seconds.
+    pub seconds: f32,
 }
 
 /// What [`optimize()`] returns.
@@ -242,8 +285,8 @@ impl Default for DrOptions {
 pub struct DrResult {
     pub guides: hairrecon_core::StrandSet,
     pub children: hairrecon_core::StrandSet,
-    /// (global iteration, loss) per step: the guide stage first, then the children's.
-    pub loss_curve: Vec<(usize, f32)>,
+    /// One record per step: the guide stage first, then the children's.
+    pub loss_curve: Vec<LossRecord>,
     /// Mean conjugate-gradient iterations per solve.
     pub mean_cg_iterations: f32,
 }
