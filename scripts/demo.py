@@ -1,17 +1,20 @@
 #!/usr/bin/env python3
-"""The main job on the bundled default: a small synthetic head, end to end.
+"""The main job on the bundled default: a small synthetic head, end to end, the whole method.
 
     .venv/bin/python scripts/demo.py [--out out/demo] [--style wavy] [--strands 2000] [--seed 7]
+                                     [--guides 500] [--children 10000] [--dr-iters-guides N] [--dr-iters-children N]
 
 1. generates a hairstyle on the bundled head (`hairrecon synth-hair`), the ground truth;
 2. renders it with headless Cycles into a capture folder (`scripts/render_synthetic.py --preset test`);
 3. imports the capture into a Blender scene with the extension's Import Capture operator;
-4. reconstructs the hair in that scene with the extension (`scripts/reconstruct.py`), which saves the
-   .blend with the hair Curves, the strands and a Cycles picture;
-5. scores the strands against the ground truth (`hairrecon eval`).
+4. reconstructs the hair in that scene with the extension (`scripts/reconstruct.py`): initial strands,
+   then the strand optimization by differentiable rendering (DR); saves the .blend with the hair
+   Curves and the strands, and renders Cycles pictures of the strands before and after DR;
+5. scores the strands before and after DR against the ground truth (`hairrecon eval`).
 
 Everything lands in OUT: gt.hair, capture/, scene.blend, result/{scene.blend, strands.hair,
-guides.hair, render.png}, eval.txt. Run it through `bash scripts/demo.sh`, which sets up the
+guides.hair, render.png, render_before.png, result/init_strands.hair, result/loss.png},
+demo_result.png (before | after), eval.txt. Run it through `bash scripts/demo.sh`, which sets up the
 environment first.
 """
 
@@ -26,6 +29,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PY = sys.executable
+# DR steps of the demo (guides, then every strand); see README for what they cost and gain
+DR_ITERS_GUIDES = 100
+DR_ITERS_CHILDREN = 40
 
 
 def step(n: int, title: str, cmd: list[str], **kw) -> None:
@@ -58,6 +64,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--guides", type=int, default=500)
     ap.add_argument("--children", type=int, default=10000)
+    ap.add_argument("--dr-iters-guides", type=int, default=DR_ITERS_GUIDES)
+    ap.add_argument("--dr-iters-children", type=int, default=DR_ITERS_CHILDREN)
     a = ap.parse_args()
     out = a.out.resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -74,19 +82,26 @@ def main() -> None:
     snippet = IMPORT_SNIPPET.format(scripts=str(ROOT / "scripts"), capture=str(out / "capture"),
                                     blend=str(out / "scene.blend"))
     step(3, "import the capture into a Blender scene (Import Capture)", [PY, "-c", snippet])
-    step(4, "reconstruct the hair in Blender (Reconstruct Hair, batch) and render a picture",
+    step(4, "reconstruct the hair in Blender (Reconstruct Hair, batch: init + DR) and render it before and after DR",
          [PY, ROOT / "scripts" / "reconstruct.py", out / "scene.blend", "--out", out / "result",
-          "--guides", a.guides, "--children", a.children, "--render", out / "result" / "render.png",
-          "--render-fit", "0.85", "--render-samples", "16"])
-    print("\n[5/5] score the strands against the ground truth", flush=True)
-    r = subprocess.run([str(bin_), "eval", "--pred", str(out / "result" / "strands.hair"), "--gt", str(out / "gt.hair")],
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"demo: error: eval failed: {r.stderr.strip()}")
-    (out / "eval.txt").write_text(r.stdout)
-    print(r.stdout)
+          "--guides", a.guides, "--children", a.children,
+          "--dr-iters-guides", a.dr_iters_guides, "--dr-iters-children", a.dr_iters_children,
+          "--render", out / "result" / "render.png", "--render-before", out / "result" / "render_before.png",
+          "--render-pair", out / "demo_result.png", "--render-fit", "0.85", "--render-samples", "16"])
+    print("\n[5/5] score the strands before and after DR against the ground truth", flush=True)
+    report = []
+    for title, pred in (("before DR (initial strands)", out / "result" / "result" / "init_strands.hair"),
+                        ("after DR (the result)", out / "result" / "strands.hair")):
+        r = subprocess.run([str(bin_), "eval", "--pred", str(pred), "--gt", str(out / "gt.hair")],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit(f"demo: error: eval of {pred} failed: {r.stderr.strip()}")
+        report.append(f"{title}: {pred}\n{r.stdout}")
+    (out / "eval.txt").write_text("\n".join(report))
+    print("\n".join(report))
     print(f"demo: done in {time.time() - t0:.0f} s. Results in {out}:")
-    for p in ["gt.hair", "capture/capture.json", "result/scene.blend", "result/strands.hair", "result/render.png", "eval.txt"]:
+    for p in ["gt.hair", "capture/capture.json", "result/scene.blend", "result/strands.hair",
+              "result/result/init_strands.hair", "result/result/loss.png", "demo_result.png", "eval.txt"]:
         print(f"  {out / p}")
 
 

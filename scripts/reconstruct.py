@@ -11,8 +11,10 @@ the .blend (Hair panel) or the overrides below, and writes into DIR:
     strands.hair        the strands (children), world space, root to tip
     guides.hair         the guide strands
     summary.json        objects, strand counts, root distances, stage times, metrics (with ground truth)
+                        (before DR: "init_strands"; after: "dr_strands")
     render.png          with --render: a Cycles picture of the result from a scene camera
     capture/, result/   the capture folder written from the scene and the library's own output
+                        (result/init_strands.hair: the strands before DR; result/loss.csv, loss.png)
 
 Progress goes to stdout; on failure it prints one ``error: ...`` line to stderr and exits 1.
 The add-on comes from the installed extension (bl_ext.*.hairrecon), else from this source tree
@@ -44,13 +46,20 @@ def parse_args(argv):
     ap.add_argument("--quality", choices=["PREVIEW", "STANDARD", "HIGH"])
     ap.add_argument("--guides", type=int)
     ap.add_argument("--children", type=int)
-    ap.add_argument("--iterations", type=int)
+    ap.add_argument("--no-dr", action="store_true",
+                    help="keep the grown strands: no optimization by differentiable rendering (DR)")
+    ap.add_argument("--dr-iters-guides", type=int, help="DR steps on the guides")
+    ap.add_argument("--dr-iters-children", type=int, help="DR steps on every strand after the guides")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--stop-after", help="stop the pipeline after this stage")
     ap.add_argument("--render", type=Path, help="also render the result with Cycles (CPU) to this PNG")
     ap.add_argument("--render-camera", help="camera for --render (default: the scene camera)")
     ap.add_argument("--render-height", type=int, default=512, help="picture height in pixels (default 512)")
     ap.add_argument("--render-samples", type=int, default=32)
+    ap.add_argument("--render-before", type=Path,
+                    help="with --render: also render the strands before DR (result/init_strands.hair) the same way")
+    ap.add_argument("--render-pair", type=Path,
+                    help="with --render and --render-before: the two pictures side by side, before on the left")
     ap.add_argument("--render-fit", type=float, default=0.0,
                     help="frame the head and hair: a picture camera from the chosen camera's side, at a distance "
                          "where they fill this share of the picture height (e.g. 0.8; 0 = the camera as it is)")
@@ -117,10 +126,12 @@ def apply_overrides(bpy, a):
         s.mask_folder = str(Path(a.masks).resolve())
     if a.quality:
         s.quality = a.quality
-    for k in ("guides", "children", "iterations"):
+    for k in ("guides", "children", "dr_iters_guides", "dr_iters_children"):
         if getattr(a, k) is not None:
             s.quality = "CUSTOM"
             setattr(s, k, getattr(a, k))
+    if a.no_dr:
+        s.dr = False
     if a.seed is not None:
         s.seed = a.seed
     if a.stop_after is not None:
@@ -217,11 +228,93 @@ def render_picture(bpy, a, hair):
         bg.inputs["Color"].default_value = (0.45, 0.46, 0.5, 1.0)
         bg.inputs["Strength"].default_value = 1.0
     r.image_settings.file_format = "PNG"
-    r.filepath = str(a.render.resolve())
-    a.render.parent.mkdir(parents=True, exist_ok=True)
+    return render_to(bpy, a.render, cam)
+
+
+def render_to(bpy, path: Path, cam) -> str:
+    r = bpy.context.scene.render
+    r.filepath = str(path.resolve())
+    path.parent.mkdir(parents=True, exist_ok=True)
     print(f"hairrecon: rendering {r.filepath} from {cam.name!r}", flush=True)
     bpy.ops.render.render(write_still=True)
     return r.filepath
+
+
+def render_before(bpy, hr, a, hair, init_strands: Path) -> str:
+    """Renders the strands before DR in place of the result's (same camera and settings): the
+    positions of the strands object are swapped for ``init_strands`` (DR keeps every strand's point
+    count), rendered to --render-before, and swapped back."""
+    import numpy as np
+
+    obj = next(o for o in hair if not o.name.endswith("Guides"))
+    cv = obj.data
+    pts, counts = hr.read_strands(str(init_strands))
+    off = np.empty(len(cv.curves) + 1, np.int32)
+    cv.curve_offset_data.foreach_get("value", off)
+    if not np.array_equal(np.diff(off), np.asarray(counts, np.int64)):
+        raise Failure(f"{init_strands} does not have the result's strands and point counts")
+    after = np.empty(len(cv.points) * 3, np.float32)
+    cv.attributes["position"].data.foreach_get("vector", after)
+    inv = np.linalg.inv(np.array(obj.matrix_world, np.float64))
+    local = (np.asarray(pts, np.float64).reshape(-1, 3) @ inv[:3, :3].T + inv[:3, 3]).astype(np.float32)
+    cv.attributes["position"].data.foreach_set("vector", local.ravel())
+    cv.update_tag()
+    try:
+        return render_to(bpy, a.render_before, bpy.context.scene.camera)
+    finally:
+        cv.attributes["position"].data.foreach_set("vector", after)
+        cv.update_tag()
+
+
+# a 3x5 pixel font for the labels of the before/after picture
+_GLYPHS = {
+    "A": "010 101 111 101 101", "B": "110 101 110 101 110", "D": "110 101 101 101 110",
+    "E": "111 100 110 100 111", "F": "111 100 110 100 100", "I": "111 010 010 010 111",
+    "N": "110 101 101 101 101", "O": "111 101 101 101 111", "R": "110 101 110 101 101",
+    "T": "111 010 010 010 010", " ": "000 000 000 000 000", "(": "001 010 010 010 001",
+    ")": "100 010 010 010 100",
+}
+
+
+def _label(img, text: str, scale: int):
+    """Draws white-on-black ``text`` into the top-left corner of ``img`` (H, W, 4 floats, top row first)."""
+    x0 = y0 = 2 * scale
+    img[: 9 * scale, : (4 * len(text) + 3) * scale, :3] = 0.0
+    for i, ch in enumerate(text.upper()):
+        rows = _GLYPHS.get(ch, _GLYPHS[" "]).split()
+        for r, bits in enumerate(rows):
+            for c, bit in enumerate(bits):
+                if bit == "1":
+                    y, x = y0 + r * scale, x0 + (4 * i + c) * scale
+                    img[y:y + scale, x:x + scale, :3] = 1.0
+
+
+def render_pair(bpy, before: Path, after: Path, out: Path) -> str:
+    """``before`` and ``after`` side by side, labelled, as one PNG."""
+    import numpy as np
+
+    imgs = []
+    for p, label in ((before, "before DR (init)"), (after, "after DR")):
+        im = bpy.data.images.load(str(p), check_existing=False)
+        w, h = im.size
+        px = np.empty(w * h * 4, np.float32)
+        im.pixels.foreach_get(px)
+        bpy.data.images.remove(im)
+        top_first = px.reshape(h, w, 4)[::-1].copy()
+        _label(top_first, label, max(2, h // 160))
+        imgs.append(top_first)
+    h = max(i.shape[0] for i in imgs)
+    gap = np.ones((h, max(4, h // 100), 4), np.float32)
+    pair = np.concatenate([imgs[0], gap, imgs[1]], axis=1)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    im = bpy.data.images.new("hairrecon before after", pair.shape[1], pair.shape[0], alpha=True)
+    im.pixels.foreach_set(np.ascontiguousarray(pair[::-1]).ravel())
+    im.filepath_raw = str(out.resolve())
+    im.file_format = "PNG"
+    im.save()
+    bpy.data.images.remove(im)
+    print(f"hairrecon: wrote {out}", flush=True)
+    return str(out)
 
 
 def run(a) -> dict:
@@ -266,6 +359,13 @@ def run(a) -> dict:
     summary["saved"] = str(out / "scene.blend")
     if a.render is not None:
         summary["render"] = render_picture(bpy, a, hair)
+        init = out / "result" / "init_strands.hair"
+        if a.render_before is not None:
+            if not init.is_file():
+                raise Failure(f"--render-before: {init} does not exist (did DR run?)")
+            summary["render_before"] = render_before(bpy, hr, a, hair, init)
+            if a.render_pair is not None:
+                summary["render_pair"] = render_pair(bpy, a.render_before, a.render, a.render_pair)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 

@@ -6,12 +6,13 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty, IntProperty, PointerProperty, StringProperty, FloatProperty, BoolProperty
 
-# guides, children, iterations per quality preset
+# guides, children, DR steps on the guides, DR steps on the children, per quality preset
 PRESETS = {
-    "PREVIEW": (300, 3000, 100),
-    "STANDARD": (2000, 50000, 500),
-    "HIGH": (4000, 100000, 1500),
+    "PREVIEW": (300, 3000, 30, 10),
+    "STANDARD": (2000, 50000, 60, 20),
+    "HIGH": (4000, 100000, 120, 40),
 }
+_COUNTS = ("guides", "children", "dr_iters_guides", "dr_iters_children")
 
 
 def _is_mesh(_self, obj):
@@ -20,14 +21,13 @@ def _is_mesh(_self, obj):
 
 def _apply_preset(self, _context):
     if self.quality in PRESETS:
-        g, c, i = PRESETS[self.quality]
-        # assign only when different: each assignment would call _to_custom
-        self["guides"], self["children"], self["iterations"] = g, c, i
+        # item assignment does not call _to_custom
+        for k, v in zip(_COUNTS, PRESETS[self.quality]):
+            self[k] = v
 
 
 def _to_custom(self, _context):
-    g, c, i = self.guides, self.children, self.iterations
-    if self.quality in PRESETS and PRESETS[self.quality] != (g, c, i):
+    if self.quality in PRESETS and PRESETS[self.quality] != tuple(getattr(self, k) for k in _COUNTS):
         self["quality"] = 3  # CUSTOM (index into the enum items)
 
 
@@ -79,8 +79,13 @@ class HairreconSettings(bpy.types.PropertyGroup):
                         description="Number of guide strands grown and optimized first")
     children: IntProperty(name="Strands", default=50000, min=0, soft_max=200000, update=_to_custom,
                           description="Number of child strands interpolated from the guides and optimized")
-    iterations: IntProperty(name="Iterations", default=500, min=0, soft_max=5000, update=_to_custom,
-                            description="Optimization iterations (used when the library supports it)")
+    dr: BoolProperty(name="Optimize strands (DR)", default=True,
+                     description="Optimize the strands by differentiable rendering against the photos after growing "
+                                 "them (slower, closer to the photos); off keeps the grown strands")
+    dr_iters_guides: IntProperty(name="Guide Steps", default=60, min=0, soft_max=2000, update=_to_custom,
+                                 description="Optimization steps on the guides (the strands follow them)")
+    dr_iters_children: IntProperty(name="Strand Steps", default=20, min=0, soft_max=2000, update=_to_custom,
+                                   description="Optimization steps on every strand after the guides")
     seed: IntProperty(name="Seed", default=0, min=0)
     stop_after: StringProperty(
         name="Stop After",

@@ -137,8 +137,12 @@ class Session:
         options = {"guides": int(s.guides), "children": int(s.children), "seed": int(s.seed)}
         if s.stop_after.strip():
             options["stop_after"] = s.stop_after.strip()
-        if _accepts(getattr(hr, "Reconstruction", None), "iterations"):
-            options["iterations"] = int(s.iterations)
+        if _accepts(getattr(hr, "Reconstruction", None), "dr"):
+            options["dr"] = bool(s.dr)
+            options["dr_iters_guides"] = int(s.dr_iters_guides)
+            options["dr_iters_children"] = int(s.dr_iters_children)
+        elif s.dr:
+            log("this hairrecon library has no strand optimization (DR); the grown strands are the result")
         session = cls(capture_dir, out_dir, keep, options, surface, group)
         session.root = root
         return session

@@ -41,7 +41,11 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
         sub = col.column(align=True)
         sub.prop(s, "guides")
         sub.prop(s, "children")
-        sub.prop(s, "iterations")
+        col.prop(s, "dr")
+        sub = col.column(align=True)
+        sub.enabled = s.dr
+        sub.prop(s, "dr_iters_guides")
+        sub.prop(s, "dr_iters_children")
 
         layout.separator()
         if wm.hairrecon_running:

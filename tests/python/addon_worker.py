@@ -192,7 +192,9 @@ def configure(p):
     s.quality = "CUSTOM"
     s.guides = int(p.get("guides", 100))
     s.children = int(p.get("children", 1000))
-    s.iterations = int(p.get("iterations", 20))
+    s.dr = bool(p.get("dr", True))
+    s.dr_iters_guides = int(p.get("dr_iters_guides", 5))
+    s.dr_iters_children = int(p.get("dr_iters_children", 3))
     s.stop_after = p.get("stop_after", "") or ""
 
 
@@ -396,7 +398,7 @@ def task_install(p):
     # quality presets fill in the counts; editing a count switches to Custom
     s = bpy.context.scene.hairrecon
     s.quality = "PREVIEW"
-    preview = [s.guides, s.children, s.iterations, s.quality]
+    preview = [s.guides, s.children, s.dr_iters_guides, s.dr_iters_children, s.dr, s.quality]
     s.guides = 123
     out["presets"] = {"preview": preview, "after_edit": [s.guides, s.quality]}
     return out

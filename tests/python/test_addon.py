@@ -24,7 +24,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from addon_harness import PYTHON, ROOT, run_worker  # noqa: E402
 
-SMALL = dict(guides=64, children=400, iterations=10)
+# small counts and few DR steps keep the tests fast
+SMALL = dict(guides=64, children=400, dr_iters_guides=4, dr_iters_children=2)
 
 
 def load_core():
@@ -211,7 +212,7 @@ def test_extension_installs_and_registers(extension_zip, tmp_path):
     assert out["has_operator"]
     assert out["operators"] == ["reconstruct", "import_capture", "export_hair"]
     assert out["panels"] == ["HAIRRECON_PT_reconstruct", "HAIRRECON_PT_advanced"] and out["panel_category"] == "Hair"
-    assert out["presets"] == {"preview": [300, 3000, 100, "PREVIEW"], "after_edit": [123, "CUSTOM"]}
+    assert out["presets"] == {"preview": [300, 3000, 30, 10, True, "PREVIEW"], "after_edit": [123, "CUSTOM"]}
     # the Rust module comes from the wheel bundled in the extension, installed in the user folder
     assert str(user) in out["module_file"], out["module_file"]
 
@@ -346,7 +347,8 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
         [str(PYTHON), str(ROOT / "scripts" / "reconstruct.py"), blend, "--out", str(out),
-         "--guides", str(SMALL["guides"]), "--children", str(SMALL["children"]), "--head", "head", "--scalp-group", "scalp"],
+         "--guides", str(SMALL["guides"]), "--children", str(SMALL["children"]), "--head", "head", "--scalp-group", "scalp",
+         "--dr-iters-guides", "3", "--dr-iters-children", "2"],
         capture_output=True, text=True, env=env, timeout=900,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -355,8 +357,13 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     assert summary["strands"]["count"] == SMALL["children"] and summary["guides"]["count"] == SMALL["guides"]
     assert summary["stage_times"] and all(t >= 0 for _, t in summary["stage_times"])
     assert summary["strands"]["max_root_distance_m"] < 1e-3
-    for f in ("scene.blend", "strands.hair", "guides.hair", "capture/capture.json"):
+    for f in ("scene.blend", "strands.hair", "guides.hair", "capture/capture.json", "result/init_strands.hair",
+              "result/loss.png"):
         assert (out / f).is_file(), f
+    # DR ran with the steps given on the command line: a header and one row per step
+    rows = (out / "result" / "loss.csv").read_text().splitlines()
+    assert rows[0].startswith("stage,iteration,total") and [r.split(",")[0] for r in rows[1:]] == ["guides"] * 3 + ["children"] * 2
+    assert [name for name, _ in summary["stage_times"]][-1] == "dr"
 
     # the saved result: hair attached to the head through the new UV map
     res = run_worker("inspect", tmp_path / "user2", blend=str(out / "scene.blend"))

@@ -10,6 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use hairrecon_core::capture::Capture;
+use hairrecon_recon::dr::DrOptions;
 use hairrecon_recon::pipeline::{
     reconstruct as run_pipeline, ReconError, ReconstructOptions, ReconstructOutput, Stage,
 };
@@ -21,14 +22,23 @@ use crate::error::{to_py, Cancelled, HairreconError};
 
 type Outcome = Result<ReconstructOutput, String>;
 
-fn options(
+/// The keyword arguments shared by `Reconstruction(...)` and `reconstruct(...)`.
+#[derive(Debug, Clone, Copy)]
+struct Args<'a> {
     guides: usize,
     children: usize,
-    stop_after: Option<&str>,
+    stop_after: Option<&'a str>,
     seed: u64,
     global_opt: bool,
     strand_init: bool,
-) -> PyResult<ReconstructOptions> {
+    dr: bool,
+    dr_iters_guides: Option<usize>,
+    dr_iters_children: Option<usize>,
+}
+
+fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
+    let Args { guides, children, stop_after, seed, global_opt, strand_init, dr, dr_iters_guides, dr_iters_children } =
+        a;
     let stop_after = match stop_after {
         None => None,
         Some(s) => Some(s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("stop_after: {e}")))?),
@@ -36,7 +46,24 @@ fn options(
     if guides == 0 || children == 0 {
         return Err(HairreconError::new_err("guides and children must be at least 1"));
     }
-    Ok(ReconstructOptions { guides, children, stop_after, seed, global_opt, strand_init, ..Default::default() })
+    let d = DrOptions::default();
+    let dr_options = DrOptions {
+        iterations_guides: dr_iters_guides.unwrap_or(d.iterations_guides),
+        iterations_children: dr_iters_children.unwrap_or(d.iterations_children),
+        seed,
+        ..d
+    };
+    Ok(ReconstructOptions {
+        guides,
+        children,
+        stop_after,
+        seed,
+        global_opt,
+        strand_init,
+        dr,
+        dr_options,
+        ..Default::default()
+    })
 }
 
 /// Runs the whole pipeline; any error or panic becomes a message (cancellation is kept apart).
@@ -65,6 +92,9 @@ fn output_to_py<'py>(py: Python<'py>, out: &ReconstructOutput) -> PyResult<Bound
     let d = PyDict::new(py);
     d.set_item("strands", out.strands.clone())?;
     d.set_item("guides", out.guides.clone())?;
+    d.set_item("init_strands", out.init_strands.clone())?;
+    d.set_item("init_guides", out.init_guides.clone())?;
+    d.set_item("loss_csv", out.loss_csv.clone())?;
     d.set_item("stage_times", out.stage_times.clone())?;
     d.set_item("metrics", crate::json_to_py(py, &out.metrics)?)?;
     Ok(d)
@@ -77,10 +107,12 @@ fn run_error_to_py(e: RunError) -> PyErr {
     }
 }
 
-/// A reconstruction running in the background.
+/// A reconstruction running in the background. `dr=False` keeps the initial strands (no
+/// optimization by differentiable rendering); `dr_iters_guides` / `dr_iters_children` set the DR
+/// steps (None: the library's defaults).
 ///
 /// ```python
-/// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000)
+/// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000, dr=True)
 /// job.start()
 /// while not job.done():
 ///     fraction, text = job.progress()
@@ -101,7 +133,7 @@ pub struct Reconstruction {
 #[pymethods]
 impl Reconstruction {
     #[new]
-    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true))]
+    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None))]
     fn new(
         capture_dir: PathBuf,
         out_dir: PathBuf,
@@ -111,11 +143,25 @@ impl Reconstruction {
         seed: u64,
         global_opt: bool,
         strand_init: bool,
+        dr: bool,
+        dr_iters_guides: Option<usize>,
+        dr_iters_children: Option<usize>,
     ) -> PyResult<Self> {
+        let args = Args {
+            guides,
+            children,
+            stop_after,
+            seed,
+            global_opt,
+            strand_init,
+            dr,
+            dr_iters_guides,
+            dr_iters_children,
+        };
         Ok(Self {
             capture_dir,
             out_dir,
-            opts: options(guides, children, stop_after, seed, global_opt, strand_init)?,
+            opts: options(args)?,
             progress: Arc::new(SharedProgress::new()),
             handle: Mutex::new(None),
             outcome: Mutex::new(None),
@@ -159,9 +205,9 @@ impl Reconstruction {
         })
     }
 
-    /// Waits for the work (GIL released) and returns its result dict: `strands`, `guides` (paths or
-    /// None), `stage_times` [(name, seconds)], `metrics` (dict). Raises `Cancelled` or
-    /// `HairreconError`.
+    /// Waits for the work (GIL released) and returns its result dict: `strands`, `guides` (the final
+    /// strands: paths or None), `init_strands`, `init_guides` (before DR, when it ran), `loss_csv`,
+    /// `stage_times` [(name, seconds)], `metrics` (dict). Raises `Cancelled` or `HairreconError`.
     fn result<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let handle = self.handle.lock().map_err(to_py)?.take();
         if let Some(h) = handle {
@@ -186,7 +232,7 @@ impl Reconstruction {
 /// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
 /// while Rust works). Returns the same dict as `Reconstruction.result()`.
 #[pyfunction]
-#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true))]
+#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None))]
 fn reconstruct<'py>(
     py: Python<'py>,
     capture_dir: PathBuf,
@@ -197,8 +243,21 @@ fn reconstruct<'py>(
     seed: u64,
     global_opt: bool,
     strand_init: bool,
+    dr: bool,
+    dr_iters_guides: Option<usize>,
+    dr_iters_children: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let opts = options(guides, children, stop_after, seed, global_opt, strand_init)?;
+    let opts = options(Args {
+        guides,
+        children,
+        stop_after,
+        seed,
+        global_opt,
+        strand_init,
+        dr,
+        dr_iters_guides,
+        dr_iters_children,
+    })?;
     let progress = SharedProgress::new();
     let out = py.allow_threads(|| run(&capture_dir, &out_dir, &opts, &progress).map_err(run_error_to_py))?;
     output_to_py(py, &out)

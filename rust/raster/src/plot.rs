@@ -253,3 +253,146 @@ pub fn write_mosaic(path: &std::path::Path, tiles: &[Tile<'_>], cols: usize, sca
     }
     save(&pm, path)
 }
+
+/// One panel of [`curve_plot_png`]: curves of raw values against the step, on a linear or a log
+/// axis fitted to the data.
+#[derive(Debug, Clone)]
+pub struct CurvePanel {
+    pub title: String,
+    /// `(label, colour, value per step)`.
+    pub curves: Vec<(String, [u8; 3], Vec<f32>)>,
+    /// A log10 axis (non-positive values are left out).
+    pub log_y: bool,
+}
+
+/// A tick label of at most about 7 characters.
+fn tick_label(v: f32) -> String {
+    let a = v.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e6).contains(&a) {
+        let e = a.log10().floor() as i32;
+        format!("{:.1}E{e}", v / 10f32.powi(e))
+    } else if a >= 100.0 {
+        format!("{v:.0}")
+    } else if a >= 1.0 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+/// Draws curve panels in a grid of `cols` columns and returns the PNG file's bytes (so that the
+/// caller can write it atomically). Each panel's y range fits its own data.
+pub fn curve_plot_png(panels: &[CurvePanel], cols: usize, x_label: &str) -> Result<Vec<u8>, RasterError> {
+    let (pw, ph) = (420.0f32, 240.0f32);
+    let (ml, mt, mr, mb) = (110.0f32, 40.0f32, 20.0f32, 50.0f32);
+    let cols = cols.clamp(1, panels.len().max(1));
+    let rows = panels.len().div_ceil(cols).max(1);
+    let (cw, chh) = (pw + ml + mr, ph + mt + mb);
+    let err = |message: String| RasterError::Write { path: "(plot)".into(), message };
+    let mut pm = Pixmap::new((cols as f32 * cw) as u32, (rows as f32 * chh) as u32)
+        .ok_or_else(|| err("bad plot size".into()))?;
+    pm.fill(Color::WHITE);
+    let black = [0u8, 0, 0];
+    let mut axis = Paint::default();
+    axis.set_color_rgba8(0, 0, 0, 255);
+    let mut grid = Paint::default();
+    grid.set_color_rgba8(210, 210, 210, 255);
+    let thin = Stroke { width: 1.0, ..Stroke::default() };
+    let line = |pm: &mut Pixmap, pts: &[(f32, f32)], paint: &Paint, stroke: &Stroke| {
+        let mut pb = PathBuilder::new();
+        for (k, &(x, y)) in pts.iter().enumerate() {
+            if k == 0 {
+                pb.move_to(x, y);
+            } else {
+                pb.line_to(x, y);
+            }
+        }
+        if let Some(p) = pb.finish() {
+            pm.stroke_path(&p, paint, stroke, Transform::identity(), None);
+        }
+    };
+    for (pi, panel) in panels.iter().enumerate() {
+        let ox = (pi % cols) as f32 * cw + ml;
+        let oy = (pi / cols) as f32 * chh + mt;
+        let tf = |v: f32| if panel.log_y { (v > 0.0).then(|| v.log10()) } else { Some(v) };
+        let vals = panel.curves.iter().flat_map(|c| c.2.iter().copied()).filter(|v| v.is_finite()).filter_map(tf);
+        let (mut lo, mut hi) = vals.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        if !lo.is_finite() {
+            (lo, hi) = (0.0, 1.0);
+        }
+        if hi - lo < 1e-6 * hi.abs().max(1e-12) {
+            (lo, hi) = (lo - 0.5 * lo.abs().max(1e-3), hi + 0.5 * hi.abs().max(1e-3));
+        }
+        let pad = 0.05 * (hi - lo);
+        (lo, hi) = (lo - pad, hi + pad);
+        let iters = panel.curves.iter().map(|c| c.2.len()).max().unwrap_or(1).saturating_sub(1).max(1);
+        for k in 0..=4 {
+            let t = lo + (hi - lo) * k as f32 / 4.0;
+            let y = oy + ph * (1.0 - k as f32 / 4.0);
+            line(&mut pm, &[(ox, y), (ox + pw, y)], &grid, &thin);
+            let label = tick_label(if panel.log_y { 10f32.powf(t) } else { t });
+            draw_text(&mut pm, &label, ox - 8.0 - label.len() as f32 * 8.0, y - 5.0, 2.0, black);
+            let it = iters * k / 4;
+            let x = ox + pw * k as f32 / 4.0;
+            line(&mut pm, &[(x, oy), (x, oy + ph)], &grid, &thin);
+            let label = format!("{it}");
+            draw_text(&mut pm, &label, x - label.len() as f32 * 4.0, oy + ph + 6.0, 2.0, black);
+        }
+        line(&mut pm, &[(ox, oy), (ox, oy + ph), (ox + pw, oy + ph)], &axis, &Stroke { width: 1.5, ..thin.clone() });
+        let title = if panel.log_y { format!("{} (LOG)", panel.title) } else { panel.title.clone() };
+        draw_text(&mut pm, &title, ox, oy - 28.0, 3.0, black);
+        draw_text(&mut pm, x_label, ox + pw / 2.0 - x_label.len() as f32 * 4.0, oy + ph + 24.0, 2.0, black);
+        for (ci, (label, rgb, vals)) in panel.curves.iter().enumerate() {
+            let mut paint = Paint::default();
+            paint.set_color_rgba8(rgb[0], rgb[1], rgb[2], 255);
+            paint.anti_alias = true;
+            let step = (vals.len() / 2000).max(1);
+            let pts: Vec<(f32, f32)> = vals
+                .iter()
+                .enumerate()
+                .step_by(step)
+                .filter_map(|(k, v)| {
+                    let t = tf(*v).filter(|t| t.is_finite())?;
+                    Some((ox + pw * k as f32 / iters as f32, oy + ph * (1.0 - (t - lo) / (hi - lo))))
+                })
+                .collect();
+            line(&mut pm, &pts, &paint, &Stroke { width: 2.0, ..Stroke::default() });
+            let (lx, ly) = (ox + pw - 150.0, oy + 8.0 + ci as f32 * 16.0);
+            if let Some(r) = Rect::from_xywh(lx, ly + 4.0, 20.0, 3.0) {
+                pm.fill_rect(r, &paint, Transform::identity(), None);
+            }
+            draw_text(&mut pm, label, lx + 26.0, ly, 2.0, *rgb);
+        }
+    }
+    pm.encode_png().map_err(|e| err(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn curve_plot_is_a_png_of_the_grid_size() {
+        let panel = |log_y| CurvePanel {
+            title: "GUIDES".into(),
+            curves: vec![
+                ("TOTAL".into(), [0, 0, 0], vec![10.0, 9.0, 8.5, 8.4]),
+                ("ZERO".into(), [200, 0, 0], vec![0.0, 0.0, 1e-4, 2e-4]),
+            ],
+            log_y,
+        };
+        let png = curve_plot_png(&[panel(false), panel(true), panel(false)], 2, "STEP").unwrap();
+        let img = image_size(&png);
+        assert_eq!(img, (2 * 550, 2 * 330));
+        assert_eq!(tick_label(912.34), "912");
+        assert_eq!(tick_label(0.5), "0.5000");
+        assert_eq!(tick_label(2.5e-5), "2.5E-5");
+    }
+
+    fn image_size(png: &[u8]) -> (u32, u32) {
+        let pm = Pixmap::decode_png(png).unwrap();
+        (pm.width(), pm.height())
+    }
+}

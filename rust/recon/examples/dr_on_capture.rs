@@ -5,7 +5,9 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
-//! `views`, `reparam`, `n`, `guide_opt`, `wo`, `wc`, `wl`, `seed`.
+//! `views`, `reparam`, `n`, `guide_opt`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `eval` (0: no metric table), and `upscale` (an integer: every
+//! view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
+//! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -41,6 +43,37 @@ fn table(pred: &StrandSet, gt: &StrandSet) -> String {
     evaluate(pred, gt, &opts).map(|r| r.table()).unwrap_or_else(|e| e.to_string())
 }
 
+/// Every view `s` times larger: K scaled (pixel centres kept), mask and orientation repeated,
+/// the head depth cast again.
+fn upscaled(t: &DrTargets, s: usize, head: Option<&Bvh>) -> Result<DrTargets, Box<dyn std::error::Error>> {
+    use hairrecon_recon::dr::DrView;
+    let mut views = Vec::new();
+    for (i, v) in t.views.iter().enumerate() {
+        let c = &v.camera;
+        let (w, h) = (c.width() as usize, c.height() as usize);
+        let mut k = c.k_rows();
+        let sf = s as f32;
+        k[0][0] *= sf;
+        k[1][1] *= sf;
+        k[0][1] *= sf;
+        // Pixel centres at integers: x' = s·x + (s − 1)/2.
+        k[0][2] = k[0][2] * sf + (sf - 1.0) / 2.0;
+        k[1][2] = k[1][2] * sf + (sf - 1.0) / 2.0;
+        let cam = hairrecon_core::Camera::new(k, c.r_rows(), c.t().to_array(), (w * s) as u32, (h * s) as u32)?;
+        let (mut mask, mut orient) = (Vec::new(), Vec::new());
+        for y in 0..h * s {
+            for x in 0..w * s {
+                let p = (y / s) * w + x / s;
+                mask.push(v.mask[p]);
+                orient.push(v.orientation[p]);
+            }
+        }
+        let depth = head.map(|h| DrView::head_depth_map(&cam, h));
+        views.push(DrView::new(i, cam, mask, orient, depth)?);
+    }
+    Ok(DrTargets { views })
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 3 {
@@ -52,6 +85,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(&args[2]);
     let mut o = DrOptions::default();
     let mut diag = false;
+    let mut upscale = 1usize;
+    let mut eval = true;
     for kv in &args[3..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
         let f: f32 = v.parse()?;
@@ -73,6 +108,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "seed" => o.seed = f as u64,
             "project_every" => o.project_every = f as usize,
             "diag" => diag = f > 0.5,
+            "upscale" => upscale = (f as usize).max(1),
+            "cg_tol" => o.cg_tolerance = f,
+            "eval" => eval = f > 0.5,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
@@ -86,7 +124,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => None,
     };
     let t = Instant::now();
-    let targets = DrTargets::from_capture(&capture, &maps, head.as_ref())?;
+    let mut targets = DrTargets::from_capture(&capture, &maps, head.as_ref(), &Print)?;
+    if upscale > 1 {
+        targets = upscaled(&targets, upscale, head.as_ref())?;
+    }
     println!("targets: {} views in {:.2} s", targets.views.len(), t.elapsed().as_secs_f64());
     println!(
         "guides {} strands / {} points, children {} strands / {} points",
@@ -153,13 +194,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         secs / iters as f64,
         r.mean_cg_iterations
     );
-    let curve: Vec<String> =
-        r.loss_curve.iter().step_by((iters / 15).max(1)).map(|(i, l)| format!("{i}:{l:.2}")).collect();
+    let curve: Vec<String> = r
+        .loss_curve
+        .iter()
+        .step_by((iters / 15).max(1))
+        .map(|l| format!("{}{}:{:.2}", &l.stage.to_string()[..1], l.iteration, l.terms.total()))
+        .collect();
     println!("loss curve: {}", curve.join(" "));
+    for stage in [hairrecon_recon::dr::DrStage::Guides, hairrecon_recon::dr::DrStage::Children] {
+        let s: Vec<f32> = r.loss_curve.iter().filter(|l| l.stage == stage).map(|l| l.seconds).collect();
+        if !s.is_empty() {
+            println!("{stage}: {} steps, {:.3} s per step (wall)", s.len(), s.iter().sum::<f32>() / s.len() as f32);
+        }
+    }
     std::fs::create_dir_all(&out)?;
     write_strands(out.join("guides.hair"), &r.guides)?;
     write_strands(out.join("strands.hair"), &r.children)?;
-    if let Some(g) = &capture.gt_strands {
+    if let (Some(g), true) = (&capture.gt_strands, eval) {
         let gt = read_strands(g)?;
         println!("before DR (children):\n{}", table(&children, &gt));
         println!("after DR (children):\n{}", table(&r.children, &gt));

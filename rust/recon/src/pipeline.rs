@@ -1,5 +1,6 @@
-//! The reconstruction pipeline up to the initial strands: capture → 2D orientation maps → oriented
-//! 3D points → directed points → roots, flow and grown strands.
+//! The whole reconstruction pipeline: capture → 2D orientation maps → oriented 3D points →
+//! directed points → roots, flow and grown strands (init) → strands optimized by differentiable
+//! rendering (DR).
 //!
 //! In: a validated [`Capture`] (images, optional masks, raw mesh, scalp mesh, optional head mesh
 //! and ground truth) and [`ReconstructOptions`]. Out: every stage's result in the output folder,
@@ -7,25 +8,34 @@
 //! capture has ground truth, the metrics of each stage (also written to `metrics.json`).
 //!
 //! Output folder: `orient2d/<view>.exr` (+ `.png` pictures), `points3d.ply`,
-//! `points_directed.ply`, `roots.ply`, `flow.bin`, `guides.hair`, `strands.hair`, `metrics.json`.
-//! Each stage follows the paper named in its module ([`crate::orient2d`], [`crate::points3d`],
-//! [`crate::direction`], [`crate::roots`], [`crate::laplace`], [`crate::grow`]).
+//! `points_directed.ply`, `roots.ply`, `flow.bin`, `guides.hair`, `strands.hair`, `metrics.json`;
+//! when DR runs also `init_guides.hair`, `init_strands.hair` (the strands before DR), `loss.csv`
+//! and `loss.png`. `strands.hair` (children) and `guides.hair` are always the run's final answer:
+//! after DR when it ran, else the initial strands. Each stage follows the paper named in its
+//! module ([`crate::orient2d`], [`crate::points3d`], [`crate::direction`], [`crate::roots`],
+//! [`crate::laplace`], [`crate::grow`], [`crate::dr`]). The DR stage renders against the capture's
+//! masks and the orientation maps of stage 1, with the head mesh (else the scalp) as occluder and
+//! as the body the strands must stay out of.
 //!
-//! Cancellation: `progress.check()` runs between views, chunks and solver iterations; a cancelled
-//! run returns [`ReconError::Cancelled`] and writes no strands file.
+//! Cancellation: `progress.check()` runs between views, chunks, solver iterations and DR steps; a
+//! cancelled run returns [`ReconError::Cancelled`] and writes no strands file. Strand files are
+//! written only once the last strand stage has finished, each atomically; a run that will write
+//! strands first removes the strand files and loss curves a previous run left in the folder, so
+//! that none of them can pass for this run's result.
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
-use hairrecon_core::formats::{read_mesh, read_strands, write_strands, FormatError};
+use hairrecon_core::formats::{atomic_write, read_mesh, read_strands, write_strands, FormatError};
 use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
 use hairrecon_core::{Bvh, StrandSet};
 use serde_json::json;
 use thiserror::Error;
 
 use crate::direction::{global_directions, gravity_directions, DirectionParams};
+use crate::dr::{optimize as dr_optimize, DrError, DrOptions, DrTargets};
 use crate::grow::{grow_guides, interpolate_children, straight_strands, GrowParams};
 use crate::laplace::{solve_flow, LaplaceParams};
 use crate::metrics::{score_directions, score_points, PointIndex};
@@ -55,8 +65,19 @@ pub enum ReconError {
     NoScalp { dir: PathBuf },
     #[error("the scalp mesh {path} cannot be used: {source}")]
     Scalp { path: PathBuf, source: ScalpError },
-    #[error("stage {0:?} is unknown; use one of orient2d, orient3d, direction, init")]
+    #[error("stage {0:?} is unknown; use one of orient2d, orient3d, direction, init, dr")]
     UnknownStage(String),
+    #[error("strand optimization (DR): {0}")]
+    Dr(DrError),
+}
+
+impl From<DrError> for ReconError {
+    fn from(e: DrError) -> Self {
+        match e {
+            DrError::Cancelled(c) => ReconError::Cancelled(c),
+            e => ReconError::Dr(e),
+        }
+    }
 }
 
 /// A stage after which the pipeline may stop.
@@ -66,6 +87,8 @@ pub enum Stage {
     Orient3d,
     Direction,
     Init,
+    /// Strand optimization by differentiable rendering (the last stage).
+    Dr,
 }
 
 impl FromStr for Stage {
@@ -76,6 +99,7 @@ impl FromStr for Stage {
             "orient3d" => Ok(Stage::Orient3d),
             "direction" => Ok(Stage::Direction),
             "init" => Ok(Stage::Init),
+            "dr" => Ok(Stage::Dr),
             _ => Err(ReconError::UnknownStage(s.into())),
         }
     }
@@ -88,6 +112,7 @@ impl std::fmt::Display for Stage {
             Stage::Orient3d => "orient3d",
             Stage::Direction => "direction",
             Stage::Init => "init",
+            Stage::Dr => "dr",
         })
     }
 }
@@ -114,6 +139,10 @@ pub struct ReconstructOptions {
     pub straight_length: f32,
     /// Write `orient2d/<view>.png` pictures besides the EXR maps.
     pub write_pictures: bool,
+    /// Optimize the strands by differentiable rendering after init (false: the result is the
+    /// initial strands, as with `stop_after = Some(Stage::Init)`).
+    pub dr: bool,
+    pub dr_options: DrOptions,
 }
 
 impl Default for ReconstructOptions {
@@ -133,6 +162,8 @@ impl Default for ReconstructOptions {
             grow: GrowParams::default(),
             straight_length: 0.1,
             write_pictures: true,
+            dr: true,
+            dr_options: DrOptions::default(),
         }
     }
 }
@@ -140,10 +171,16 @@ impl Default for ReconstructOptions {
 /// What a run produced.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReconstructOutput {
-    /// Child strands (`strands.hair`), when the run reached the init stage.
+    /// The final child strands (`strands.hair`), when the run reached the init stage.
     pub strands: Option<PathBuf>,
-    /// Guide strands (`guides.hair`).
+    /// The final guide strands (`guides.hair`).
     pub guides: Option<PathBuf>,
+    /// The children before DR (`init_strands.hair`), when DR ran.
+    pub init_strands: Option<PathBuf>,
+    /// The guides before DR (`init_guides.hair`), when DR ran.
+    pub init_guides: Option<PathBuf>,
+    /// The loss curve (`loss.csv`; the plot is `loss.png` beside it), when DR ran.
+    pub loss_csv: Option<PathBuf>,
     /// (stage, seconds) in order.
     pub stage_times: Vec<(String, f64)>,
     /// Per-stage metrics (an empty object without ground truth).
@@ -255,14 +292,25 @@ pub fn reconstruct(
     mkdir(out_dir)?;
     let mut times: Vec<(String, f64)> = Vec::new();
     let mut metrics = serde_json::Map::new();
-    let stop = opts.stop_after.unwrap_or(Stage::Init);
+    let stop = opts.stop_after.unwrap_or(Stage::Dr);
+    let run_dr = opts.dr && stop >= Stage::Dr;
+    if stop >= Stage::Init {
+        for name in STRAND_OUTPUTS {
+            let p = out_dir.join(name);
+            match std::fs::remove_file(&p) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(ReconError::Write { path: p, source: e });
+                }
+                _ => {}
+            }
+        }
+    }
     let write_metrics = |m: &serde_json::Map<String, serde_json::Value>| -> Result<(), ReconError> {
         if m.is_empty() {
             return Ok(());
         }
-        let p = out_dir.join("metrics.json");
         let text = serde_json::to_string_pretty(m).unwrap_or_default();
-        std::fs::write(&p, text).map_err(|source| ReconError::Write { path: p, source })
+        Ok(atomic_write(out_dir.join("metrics.json"), |w| Ok(std::io::Write::write_all(w, text.as_bytes())?))?)
     };
 
     // Stage 1: 2D orientation.
@@ -275,6 +323,9 @@ pub fn reconstruct(
     let done = |times: Vec<(String, f64)>, metrics: serde_json::Map<String, serde_json::Value>| ReconstructOutput {
         strands: None,
         guides: None,
+        init_strands: None,
+        init_guides: None,
+        loss_csv: None,
         stage_times: times,
         metrics: serde_json::Value::Object(metrics),
     };
@@ -355,11 +406,12 @@ pub fn reconstruct(
     let guide_roots = sample_roots(&scalp, opts.guides.max(1), opts.seed).map_err(scalp_err)?;
     let child_roots = sample_roots(&scalp, opts.children.max(1), opts.seed.wrapping_add(1)).map_err(scalp_err)?;
     guide_roots.to_points().save_ply(&out_dir.join("roots.ply"))?;
+    // The head (else the scalp): what the flow grows around and DR keeps the strands out of.
+    let inner = match &capture.head_mesh {
+        Some(h) => Bvh::new(read_mesh(h)?),
+        None => scalp.bvh().clone(),
+    };
     let (guides, children) = if opts.strand_init {
-        let inner = match &capture.head_mesh {
-            Some(h) => Bvh::new(read_mesh(h)?),
-            None => scalp.bvh().clone(),
-        };
         let (flow, stats) = solve_flow(&raw, &inner, &scalp, &directed, &opts.laplace, progress)?;
         metrics.insert("laplace_stats".into(), serde_json::to_value(stats).unwrap_or_default());
         flow.save(&out_dir.join("flow.bin"))?;
@@ -377,23 +429,95 @@ pub fn reconstruct(
     progress.check()?;
     let guides_path = out_dir.join("guides.hair");
     let strands_path = out_dir.join("strands.hair");
-    write_strands(&guides_path, &guides)?;
-    write_strands(&strands_path, &children)?;
     times.push(("init".into(), t.elapsed().as_secs_f64()));
+    if !run_dr {
+        write_strands(&guides_path, &guides)?;
+        write_strands(&strands_path, &children)?;
+        if let Some(g) = &gt {
+            progress.update("metrics", 0.0, "scoring strands");
+            metrics.insert("init_guides".into(), strand_metric(&guides, &g.strands));
+            metrics.insert("init_strands".into(), strand_metric(&children, &g.strands));
+        }
+        write_metrics(&metrics)?;
+        progress.update("init", 1.0, "");
+        return Ok(ReconstructOutput {
+            strands: Some(strands_path),
+            guides: Some(guides_path),
+            init_strands: None,
+            init_guides: None,
+            loss_csv: None,
+            stage_times: times,
+            metrics: serde_json::Value::Object(metrics),
+        });
+    }
+
+    // Stage 6: DR. Nothing is written until it has finished.
+    let t = Instant::now();
+    progress.update("dr", 0.0, "targets");
+    let targets = DrTargets::from_capture(capture, &maps, Some(&inner), progress)?;
+    let t_targets = t.elapsed().as_secs_f64();
+    let t_opt = Instant::now();
+    let r = dr_optimize(&guides, &children, &targets, scalp.bvh(), Some(&inner), &opts.dr_options, progress)?;
+    let t_opt = t_opt.elapsed().as_secs_f64();
+    progress.check()?;
+    drop(targets);
+    let init_guides_path = out_dir.join("init_guides.hair");
+    let init_strands_path = out_dir.join("init_strands.hair");
+    let loss_csv = out_dir.join("loss.csv");
+    write_strands(&init_guides_path, &guides)?;
+    write_strands(&init_strands_path, &children)?;
+    crate::dr::report::write_loss_csv(&loss_csv, &r.loss_curve)?;
+    crate::dr::report::write_loss_png(&out_dir.join("loss.png"), &r.loss_curve)?;
+    write_strands(&guides_path, &r.guides)?;
+    write_strands(&strands_path, &r.children)?;
+    times.push(("dr".into(), t.elapsed().as_secs_f64()));
+    let steps = r.loss_curve.len();
+    let first_last = |stage| {
+        let recs: Vec<_> = r.loss_curve.iter().filter(|x| x.stage == stage).collect();
+        let secs: f64 = recs.iter().map(|x| x.seconds as f64).sum();
+        json!({
+            "steps": recs.len(),
+            "first_loss": recs.first().map(|x| x.terms.total()),
+            "last_loss": recs.last().map(|x| x.terms.total()),
+            "seconds_per_step": if recs.is_empty() { 0.0 } else { secs / recs.len() as f64 },
+        })
+    };
+    metrics.insert(
+        "dr_stats".into(),
+        json!({
+            "steps": steps,
+            "targets_seconds": t_targets,
+            "optimize_seconds": t_opt,
+            "seconds_per_step": if steps > 0 { t_opt / steps as f64 } else { 0.0 },
+            "mean_cg_iterations": r.mean_cg_iterations,
+            "guides": first_last(crate::dr::DrStage::Guides),
+            "children": first_last(crate::dr::DrStage::Children),
+        }),
+    );
     if let Some(g) = &gt {
         progress.update("metrics", 0.0, "scoring strands");
         metrics.insert("init_guides".into(), strand_metric(&guides, &g.strands));
         metrics.insert("init_strands".into(), strand_metric(&children, &g.strands));
+        progress.update("metrics", 0.5, "scoring strands");
+        metrics.insert("dr_guides".into(), strand_metric(&r.guides, &g.strands));
+        metrics.insert("dr_strands".into(), strand_metric(&r.children, &g.strands));
     }
     write_metrics(&metrics)?;
-    progress.update("init", 1.0, "");
+    progress.update("dr", 1.0, "");
     Ok(ReconstructOutput {
         strands: Some(strands_path),
         guides: Some(guides_path),
+        init_strands: Some(init_strands_path),
+        init_guides: Some(init_guides_path),
+        loss_csv: Some(loss_csv),
         stage_times: times,
         metrics: serde_json::Value::Object(metrics),
     })
 }
+
+/// The files of the strand stages, removed at the start of a run that writes strands.
+const STRAND_OUTPUTS: [&str; 6] =
+    ["strands.hair", "guides.hair", "init_strands.hair", "init_guides.hair", "loss.csv", "loss.png"];
 
 /// Reloads oriented points saved by a stage (`points3d.ply` or `points_directed.ply`).
 pub fn load_points(out_dir: &Path, name: &str) -> Result<OrientedPoints, ReconError> {

@@ -13,7 +13,7 @@ use hairrecon_raster::synthetic::sphere_strands;
 use hairrecon_raster::{channel, AaMethod, RasterSettings, Renderer, SegmentShape, Width};
 use hairrecon_recon::dr::children::ChildMap;
 use hairrecon_recon::dr::optimize::Evaluator;
-use hairrecon_recon::dr::{optimize, DrOptions, DrResult, DrTargets, DrView};
+use hairrecon_recon::dr::{optimize, DrOptions, DrResult, DrStage, DrTargets, DrView, LossRecord};
 use hairrecon_recon::progress::NoProgress;
 
 const RADIUS: f32 = 0.09;
@@ -177,9 +177,9 @@ fn run(sc: &Scene, o: &DrOptions) -> DrResult {
     optimize(&sc.guides, &sc.start, &sc.targets, &sc.scalp, Some(&sc.head), o, &NoProgress).unwrap()
 }
 
-fn mean_first_last(curve: &[(usize, f32)], n: usize) -> (f32, f32) {
-    let a = curve[..n].iter().map(|c| c.1).sum::<f32>() / n as f32;
-    let b = curve[curve.len() - n..].iter().map(|c| c.1).sum::<f32>() / n as f32;
+fn mean_first_last(curve: &[LossRecord], n: usize) -> (f64, f64) {
+    let a = curve[..n].iter().map(|c| c.terms.total()).sum::<f64>() / n as f64;
+    let b = curve[curve.len() - n..].iter().map(|c| c.terms.total()).sum::<f64>() / n as f64;
     (a, b)
 }
 
@@ -193,17 +193,20 @@ fn dr_grows_shortened_strands_back_and_reparam_matters() {
         for (name, s) in [("gt", &sc.gt), ("start", &sc.start)] {
             let mut ev = Evaluator::new(s.points(), s.offsets(), None, &sc.targets, &o);
             let mut g = vec![Vec3::ZERO; s.num_points()];
-            let l = ev.evaluate(s.points(), s.offsets(), None, &sc.targets, &views, &o, &mut g).unwrap();
+            let l = ev.evaluate(s.points(), s.offsets(), None, &sc.targets, &views, &o, &mut g).unwrap().total();
             println!("loss at {name}: {l:.3}");
         }
     }
     let full = run(&sc, &opts());
     if std::env::var("DIAG").is_ok() {
-        let c: Vec<String> = full.loss_curve.iter().step_by(25).map(|(i, l)| format!("{i}:{l:.0}")).collect();
+        let c: Vec<String> =
+            full.loss_curve.iter().step_by(25).map(|l| format!("{}:{:.0}", l.iteration, l.terms.total())).collect();
         println!("curve {}", c.join(" "));
     }
     let (f1, t1) = score(&full.children, &sc.gt);
     let n = 10;
+    assert!(full.loss_curve[..150].iter().all(|l| l.stage == DrStage::Guides));
+    assert!(full.loss_curve[150..].iter().all(|l| l.stage == DrStage::Children));
     let (la, lb) = mean_first_last(&full.loss_curve[150..], n);
     let (ga, gb) = mean_first_last(&full.loss_curve[..150], n);
     println!("start: F1 {f0:.1}, tip error {t0:.1} mm");
@@ -251,7 +254,7 @@ fn loss_chain_matches_finite_differences() {
     let mut g = vec![Vec3::ZERO; x0.len()];
     let mut scratch = g.clone();
     let mut eval = |ev: &mut Evaluator, x: &[Vec3], grad: &mut [Vec3]| {
-        let l = ev.evaluate(x, guides.offsets(), Some(&mut map), &t, &views, &o, grad).unwrap();
+        let l = ev.evaluate(x, guides.offsets(), Some(&mut map), &t, &views, &o, grad).unwrap().total();
         let ids: Vec<u32> = (0..views.len()).flat_map(|v| ev.hard_ids(v).to_vec()).collect();
         (l, ids)
     };

@@ -36,12 +36,60 @@ impl Default for LossWeights {
     }
 }
 
-/// L_m + L_o of one view; writes ∂L/∂ĉ into `d_image` (same shape as `img`). `strand_depth` is the
-/// hard raster's depth per pixel (`f32::INFINITY` for background).
-pub fn image_loss(img: &Image, strand_depth: &[f32], view: &DrView, w: &LossWeights, d_image: &mut Image) -> f64 {
+/// The value of each loss term (weighted, as they enter the total).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct LossTerms {
+    /// L_m, the silhouette term.
+    pub mask: f64,
+    /// L_o, the orientation term.
+    pub orientation: f64,
+    /// R_c, the curvature regularizer.
+    pub curvature: f64,
+    /// R_len, the segment-length regularizer.
+    pub length: f64,
+}
+
+impl LossTerms {
+    /// The names of the terms, in the order of [`LossTerms::values`].
+    pub const NAMES: [&'static str; 4] = ["mask", "orientation", "curvature", "length"];
+
+    pub fn values(&self) -> [f64; 4] {
+        [self.mask, self.orientation, self.curvature, self.length]
+    }
+
+    pub fn total(&self) -> f64 {
+        self.values().iter().sum()
+    }
+}
+
+impl std::ops::AddAssign for LossTerms {
+    fn add_assign(&mut self, o: Self) {
+        self.mask += o.mask;
+        self.orientation += o.orientation;
+        self.curvature += o.curvature;
+        self.length += o.length;
+    }
+}
+
+impl std::ops::Mul<f64> for LossTerms {
+    type Output = Self;
+    fn mul(self, s: f64) -> Self {
+        Self {
+            mask: self.mask * s,
+            orientation: self.orientation * s,
+            curvature: self.curvature * s,
+            length: self.length * s,
+        }
+    }
+}
+
+/// L_m + L_o of one view (in `mask` and `orientation`; the regularizers are 0); writes ∂L/∂ĉ into
+/// `d_image` (same shape as `img`). `strand_depth` is the hard raster's depth per pixel
+/// (`f32::INFINITY` for background).
+pub fn image_loss(img: &Image, strand_depth: &[f32], view: &DrView, w: &LossWeights, d_image: &mut Image) -> LossTerms {
     let nch = img.channels;
     d_image.reset(img.width, img.height, nch);
-    let mut loss = 0.0f64;
+    let (mut lm, mut lo) = (0.0f64, 0.0f64);
     for p in 0..img.num_pixels() {
         let c = &img.data[p * nch..p * nch + 3];
         let hidden = view.head_depth.as_ref().is_some_and(|h| strand_depth[p] > h[p]);
@@ -51,7 +99,8 @@ pub fn image_loss(img: &Image, strand_depth: &[f32], view: &DrView, w: &LossWeig
         let em = cov - view.mask[p];
         let (rc, rs) = (oc - cov * tc, os - cov * ts);
         let wo = w.orientation * conf;
-        loss += 0.5 * (w.mask * em * em + wo * (rc * rc + rs * rs)) as f64;
+        lm += 0.5 * (w.mask * em * em) as f64;
+        lo += 0.5 * (wo * (rc * rc + rs * rs)) as f64;
         if hidden {
             continue;
         }
@@ -60,14 +109,15 @@ pub fn image_loss(img: &Image, strand_depth: &[f32], view: &DrView, w: &LossWeig
         d[channel::COS2] = wo * rc;
         d[channel::SIN2] = wo * rs;
     }
-    loss
+    LossTerms { mask: lm, orientation: lo, ..Default::default() }
 }
 
-/// R_c + R_len over strands with the given offsets; adds the gradient into `grad`.
-pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeights, grad: &mut [Vec3]) -> f64 {
+/// R_c + R_len over strands with the given offsets (in `curvature` and `length`; the image terms
+/// are 0); adds the gradient into `grad`.
+pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeights, grad: &mut [Vec3]) -> LossTerms {
     let inv_s2 = 1.0 / (scale * scale).max(1e-20);
     let (wc, wl) = (w.curvature * inv_s2, w.length * inv_s2);
-    let mut loss = 0.0f64;
+    let (mut lc, mut ll) = (0.0f64, 0.0f64);
     for s in 0..offsets.len().saturating_sub(1) {
         let (o, e) = (offsets[s], offsets[s + 1]);
         let p = &points[o..e];
@@ -79,7 +129,7 @@ pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeig
                 let v = p[i + 1] - p[i];
                 let l = v.length().max(1e-12);
                 let e = l - mean;
-                loss += 0.5 * (wl * e * e) as f64;
+                ll += 0.5 * (wl * e * e) as f64;
                 let gv = v * (wl * e / l);
                 g[i + 1] += gv;
                 g[i] -= gv;
@@ -88,7 +138,7 @@ pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeig
         if wc > 0.0 {
             for i in 1..n.saturating_sub(1) {
                 let c = p[i - 1] - p[i] * 2.0 + p[i + 1];
-                loss += 0.5 * (wc * c.length_squared()) as f64;
+                lc += 0.5 * (wc * c.length_squared()) as f64;
                 let gc = c * wc;
                 g[i - 1] += gc;
                 g[i] -= gc * 2.0;
@@ -96,7 +146,7 @@ pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeig
             }
         }
     }
-    loss
+    LossTerms { curvature: lc, length: ll, ..Default::default() }
 }
 
 /// The median segment length of strands with the given offsets (the length scale `s`).
@@ -134,8 +184,8 @@ mod tests {
                 a[i][c] += h;
                 b[i][c] -= h;
                 let mut scratch = vec![Vec3::ZERO; pts.len()];
-                let fd = (regularizers(&a, &offsets, s, &w, &mut scratch)
-                    - regularizers(&b, &offsets, s, &w, &mut scratch))
+                let fd = (regularizers(&a, &offsets, s, &w, &mut scratch).total()
+                    - regularizers(&b, &offsets, s, &w, &mut scratch).total())
                     / (2.0 * h as f64);
                 let err = (fd as f32 - g[i][c]).abs();
                 assert!(err <= 0.02 * fd.abs() as f32 + 0.5, "point {i} coord {c}: fd {fd} analytic {}", g[i][c]);

@@ -16,9 +16,9 @@ use rayon::prelude::*;
 
 use super::adam::Adam;
 use super::children::ChildMap;
-use super::losses::{image_loss, median_segment_length, regularizers};
+use super::losses::{image_loss, median_segment_length, regularizers, LossTerms};
 use super::reparam::{LaplacianParams, Reparam};
-use super::{push_out_of_head, DrError, DrOptions, DrResult, DrTargets};
+use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
 
 /// One view slot of a step: its renderer and buffers.
@@ -61,8 +61,8 @@ fn segments(offsets: &[usize]) -> Vec<[u32; 2]> {
 }
 
 /// The objective of one stage: renders the strands (or the children that follow them) in some
-/// views and returns `L_m + L_o` (averaged over the views) plus the regularizers, with the gradient
-/// with respect to the optimized points. Owns one renderer per view slot.
+/// views and returns the terms `L_m`, `L_o` (averaged over the views) and the regularizers, with the
+/// gradient of their sum with respect to the optimized points. Owns one renderer per view slot.
 #[derive(Debug)]
 pub struct Evaluator {
     slots: Vec<Slot>,
@@ -105,8 +105,8 @@ impl Evaluator {
         &self.slots[slot].renderer.buffers.ids
     }
 
-    /// The loss in the given views (at most as many as `views_per_step`); `g_x` is overwritten with
-    /// its gradient.
+    /// The loss terms in the given views (at most as many as `views_per_step`); `g_x` is overwritten
+    /// with the gradient of their sum.
     pub fn evaluate(
         &mut self,
         x: &[Vec3],
@@ -116,14 +116,14 @@ impl Evaluator {
         views: &[usize],
         opts: &DrOptions,
         g_x: &mut [Vec3],
-    ) -> Result<f64, DrError> {
+    ) -> Result<LossTerms, DrError> {
         if let Some(m) = map.as_deref() {
             m.forward(x, &mut self.render_pts);
         }
         let pts: &[Vec3] = if map.is_some() { &self.render_pts } else { x };
         let views = &views[..views.len().min(self.slots.len())];
         let (segs, settings) = (&self.segs, self.settings);
-        let losses: Vec<Result<f64, DrError>> = self.slots[..views.len()]
+        let losses: Vec<Result<LossTerms, DrError>> = self.slots[..views.len()]
             .par_iter_mut()
             .zip(views.par_iter())
             .map(|(slot, &v)| {
@@ -138,7 +138,7 @@ impl Evaluator {
             })
             .collect();
         let inv_v = 1.0 / views.len().max(1) as f32;
-        let mut loss = 0.0f64;
+        let mut loss = LossTerms::default();
         for l in losses {
             loss += l? * inv_v as f64;
         }
@@ -162,14 +162,16 @@ impl Evaluator {
 
 /// The state of one stage: the optimized points and how they are rendered.
 struct StageInput<'a> {
-    name: &'static str,
+    stage: DrStage,
     /// Points of the optimized strands (guides or children), roots first.
     x: &'a mut [Vec3],
     offsets: &'a [usize],
     /// For the guide stage: the children that are rendered in place of `x`.
     map: Option<&'a mut ChildMap>,
     iterations: usize,
-    iteration_base: usize,
+    /// Steps taken before this stage, and in all stages (for the progress fraction).
+    steps_before: usize,
+    steps_total: usize,
 }
 
 /// Statistics of a stage.
@@ -185,13 +187,15 @@ fn run_stage(
     head: Option<&Bvh>,
     opts: &DrOptions,
     progress: &dyn Progress,
-    loss_curve: &mut Vec<(usize, f32)>,
+    loss_curve: &mut Vec<LossRecord>,
 ) -> Result<StageStats, DrError> {
-    let StageInput { name, x, offsets, mut map, iterations, iteration_base } = input;
+    let StageInput { stage, x, offsets, mut map, iterations, steps_before, steps_total } = input;
     let mut stats = StageStats::default();
     if iterations == 0 || x.is_empty() {
         return Ok(stats);
     }
+    progress.check()?;
+    progress.update("dr", steps_before as f32 / steps_total.max(1) as f32, &format!("{stage}: preparing"));
     let lap = LaplacianParams {
         lambda: if opts.reparam { opts.lambda } else { 0.0 },
         k_neighbors: if opts.reparam && opts.neighbor_reparam { opts.k_neighbors } else { 0 },
@@ -199,13 +203,14 @@ fn run_stage(
         key: opts.knn_key,
     };
     let mut reparam = Reparam::new(x, offsets, &lap);
+    reparam.tolerance = opts.cg_tolerance;
     let free: Vec<u32> = reparam.free().to_vec();
     let nf = free.len();
     let mut eval = Evaluator::new(x, offsets, map.as_deref(), targets, opts);
     let nv = targets.views.len();
     let per_step = opts.views_per_step.clamp(1, nv);
     let mut order: Vec<usize> = (0..nv).collect();
-    let mut picker = Picker(hairrecon_core::scalp::splitmix64(opts.seed ^ iteration_base as u64) | 1);
+    let mut picker = Picker(hairrecon_core::scalp::splitmix64(opts.seed ^ steps_before as u64) | 1);
     let mut adam = Adam::new(nf, opts.uniform_adam);
     let mut g_x = vec![Vec3::ZERO; x.len()];
     let mut g_free = vec![Vec3::ZERO; nf];
@@ -214,10 +219,12 @@ fn run_stage(
     let mut delta_x = vec![Vec3::ZERO; nf];
     for it in 0..iterations {
         progress.check()?;
+        let t0 = std::time::Instant::now();
         picker.pick(&mut order, per_step);
-        let loss = eval.evaluate(x, offsets, map.as_deref_mut(), targets, &order[..per_step], opts, &mut g_x)?;
+        let terms = eval.evaluate(x, offsets, map.as_deref_mut(), targets, &order[..per_step], opts, &mut g_x)?;
+        let loss = terms.total();
         if !loss.is_finite() {
-            return Err(DrError::Diverged(iteration_base + it));
+            return Err(DrError::Diverged(steps_before + it));
         }
         for (g, &i) in g_free.iter_mut().zip(&free) {
             *g = g_x[i as usize];
@@ -249,8 +256,12 @@ fn run_stage(
                 }
             }
         }
-        loss_curve.push((iteration_base + it, loss as f32));
-        progress.update(name, (it + 1) as f32 / iterations as f32, &format!("loss {loss:.5}"));
+        loss_curve.push(LossRecord { stage, iteration: it, terms, seconds: t0.elapsed().as_secs_f32() });
+        progress.update(
+            "dr",
+            (steps_before + it + 1) as f32 / steps_total.max(1) as f32,
+            &format!("{stage} {}/{iterations} loss {loss:.1}", it + 1),
+        );
     }
     Ok(stats)
 }
@@ -284,19 +295,23 @@ pub fn optimize(
     };
     let mut gx = snap(guides);
     let mut cx = snap(children);
-    let mut loss_curve = Vec::with_capacity(opts.iterations_guides + opts.iterations_children);
-    let (mut cg, mut solves) = (0usize, 0usize);
     let guide_stage = opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
+    let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
+    let child_steps = if children.is_empty() { 0 } else { opts.iterations_children };
+    let steps_total = guide_steps + child_steps;
+    let mut loss_curve = Vec::with_capacity(steps_total);
+    let (mut cg, mut solves) = (0usize, 0usize);
     if guide_stage {
         let stats = if children.is_empty() {
             run_stage(
                 StageInput {
-                    name: "dr guides",
+                    stage: DrStage::Guides,
                     x: &mut gx,
                     offsets: guides.offsets(),
                     map: None,
-                    iterations: opts.iterations_guides,
-                    iteration_base: 0,
+                    iterations: guide_steps,
+                    steps_before: 0,
+                    steps_total,
                 },
                 targets,
                 head,
@@ -310,12 +325,13 @@ pub fn optimize(
             let mut map = ChildMap::new(&g0, &c0, opts.child_k);
             let stats = run_stage(
                 StageInput {
-                    name: "dr guides",
+                    stage: DrStage::Guides,
                     x: &mut gx,
                     offsets: guides.offsets(),
                     map: Some(&mut map),
-                    iterations: opts.iterations_guides,
-                    iteration_base: 0,
+                    iterations: guide_steps,
+                    steps_before: 0,
+                    steps_total,
                 },
                 targets,
                 head,
@@ -338,15 +354,16 @@ pub fn optimize(
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
-    if !children.is_empty() {
+    if child_steps > 0 {
         let stats = run_stage(
             StageInput {
-                name: "dr children",
+                stage: DrStage::Children,
                 x: &mut cx,
                 offsets: children.offsets(),
                 map: None,
-                iterations: opts.iterations_children,
-                iteration_base: if guide_stage { opts.iterations_guides } else { 0 },
+                iterations: child_steps,
+                steps_before: guide_steps,
+                steps_total,
             },
             targets,
             head,
@@ -357,6 +374,8 @@ pub fn optimize(
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
+    progress.check()?;
+    progress.update("dr", 1.0, "finalizing");
     let build = |p: Vec<Vec3>, s: &StrandSet| StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Diverged(0));
     let g = build(gx, guides)?;
     let c = build(cx, children)?;
@@ -370,7 +389,10 @@ pub fn optimize(
 
 /// Makes strands simulation-ready: each root on the closest scalp point (within 5 cm), optionally
 /// every strand resampled to equal segment lengths (same point count), then every other point
-/// pushed at least `clearance` outside the head (if at most 5 mm inside it).
+/// pushed at least `clearance` outside the head (if at most 5 mm inside it), and (with
+/// `equalize`) the pushed strand resampled again. The new points lie on the pushed polyline, whose
+/// vertices are all `clearance` outside the head, so they stay outside it unless a segment cuts a
+/// concavity of the head deeper than `clearance`.
 pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance: f32, equalize: bool) -> StrandSet {
     let mut out: Vec<Vec3> = strands.points().to_vec();
     let offs = strands.offsets();
@@ -391,6 +413,11 @@ pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance:
         if let Some(h) = head {
             for p in s[1..].iter_mut() {
                 *p = push_out_of_head(h, *p, clearance);
+            }
+            // Pushing points out stretches the segments next to them: even them again along the
+            // pushed polyline, whose vertices are all outside.
+            if equalize {
+                resample_even(s);
             }
         }
     });

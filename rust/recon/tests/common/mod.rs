@@ -159,6 +159,8 @@ fn behind_head(c: Vec3, p: Vec3) -> bool {
 pub struct Rendered {
     pub image: Vec<f32>,
     pub mask: Vec<bool>,
+    /// The strands' own alpha (the largest per pixel), not dilated.
+    pub coverage: Vec<f32>,
     pub gt: OrientationMap,
 }
 
@@ -253,11 +255,18 @@ pub fn render(cam: &Camera, strands: &StrandSet) -> Rendered {
         }
     }
     let gt = OrientationMap { width: w as u32, height: h as u32, theta, confidence: weight };
-    Rendered { image: img, mask, gt }
+    Rendered { image: img, mask, coverage: cover, gt }
 }
 
 /// Writes a complete capture folder and returns its path.
 pub fn write_capture(dir: &Path, n_strands: usize, size: u32, seed: u64) -> PathBuf {
+    write_capture_with(dir, n_strands, size, seed, false)
+}
+
+/// [`write_capture`]; with `coverage_masks`, each mask is the strands' alpha (twice the painted
+/// alpha, at most 1; not dilated) instead of the dilated binary mask: a matte as a renderer's
+/// alpha gives it, which the DR silhouette loss compares with rendered coverage.
+pub fn write_capture_with(dir: &Path, n_strands: usize, size: u32, seed: u64, coverage_masks: bool) -> PathBuf {
     let _ = std::fs::remove_dir_all(dir);
     for sub in ["images", "masks", "gt/orientation"] {
         std::fs::create_dir_all(dir.join(sub)).unwrap();
@@ -276,7 +285,9 @@ pub fn write_capture(dir: &Path, n_strands: usize, size: u32, seed: u64) -> Path
         });
         img.save(dir.join(format!("images/{name}.png"))).unwrap();
         let m = image::GrayImage::from_fn(size, size, |x, y| {
-            image::Luma([if r.mask[(y * size + x) as usize] { 255 } else { 0 }])
+            let i = (y * size + x) as usize;
+            let v = if coverage_masks { (2.0 * r.coverage[i]).min(1.0) } else { f32::from(u8::from(r.mask[i])) };
+            image::Luma([(v * 255.0).round() as u8])
         });
         m.save(dir.join(format!("masks/{name}.png"))).unwrap();
         r.gt.save_exr(&dir.join(format!("gt/orientation/{name}.exr"))).unwrap();

@@ -1,0 +1,135 @@
+//! `hairrecon reconstruct` through the real binary on a small synthetic capture (the one of
+//! `rust/recon/tests/common`): the DR flags parse and reach the pipeline's options, bad values
+//! give one clear error, `--no-dr` writes the same strands as `--stop-after init`, and a DR run
+//! keeps those as `init_strands.hair` beside its own `strands.hair`, `loss.csv` and `loss.png`.
+
+#[path = "../../recon/tests/common/mod.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_hairrecon")
+}
+
+fn run(args: &[&str], dirs: &[&Path]) -> Output {
+    let mut c = Command::new(bin());
+    c.arg("reconstruct");
+    for d in dirs {
+        c.arg(d);
+    }
+    c.args(args).output().unwrap()
+}
+
+fn ok(o: &Output) -> String {
+    assert!(
+        o.status.success(),
+        "stdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("hairrecon-reconstruct-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn dr_flags_reach_the_options() {
+    let cap = Path::new("unused-capture");
+    let out = Path::new("unused-out");
+    let flags = [
+        "--out",
+        "unused-out",
+        "--print-options",
+        "--no-guide-opt",
+        "--no-reparam",
+        "--no-neighbor-reparam",
+        "--dr-iters-guides",
+        "7",
+        "--dr-iters-children",
+        "3",
+        "--dr-lr",
+        "0.004",
+        "--dr-views",
+        "6",
+        "--dr-lambda",
+        "5",
+        "--dr-width-mm",
+        "0.5",
+        "--seed",
+        "9",
+    ];
+    let text = ok(&run(&flags, &[cap]));
+    for want in [
+        "dr: true,",
+        "iterations_guides: 7,",
+        "iterations_children: 3,",
+        "lr: 0.004,",
+        "lambda: 5.0,",
+        "views_per_step: 6,",
+        "reparam: false,",
+        "neighbor_reparam: false,",
+        "guide_opt: false,",
+        "width_m: 0.0005",
+        "seed: 9,",
+    ] {
+        assert!(text.contains(want), "{want:?} not in\n{text}");
+    }
+    assert!(!out.exists(), "--print-options must not run anything");
+    // The defaults: DR on, every part of it on.
+    let text = ok(&run(&["--out", "unused-out", "--print-options"], &[cap]));
+    for want in ["dr: true,", "reparam: true,", "neighbor_reparam: true,", "guide_opt: true,", "stop_after: None,"] {
+        assert!(text.contains(want), "{want:?} not in\n{text}");
+    }
+    let text = ok(&run(&["--out", "unused-out", "--print-options", "--no-dr", "--stop-after", "dr"], &[cap]));
+    assert!(text.contains("dr: false,") && text.contains("stop_after: Some(\n        Dr,"), "{text}");
+    // Bad values: one line on stderr, exit code 1.
+    for (flag, value, words) in [
+        ("--dr-lr", "0", "--dr-lr must be a positive number"),
+        ("--dr-views", "0", "--dr-views must be at least 1"),
+        ("--dr-width-mm", "0", "--dr-width-mm must be a positive number"),
+        ("--stop-after", "paint", "use one of orient2d, orient3d, direction, init, dr"),
+    ] {
+        let o = run(&["--out", "unused-out", "--print-options", flag, value], &[cap]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{flag} {value}: {err}");
+        assert!(err.contains(words) && err.trim().lines().count() == 1, "{flag} {value}: {err}");
+    }
+}
+
+#[test]
+fn no_dr_equals_stop_after_init_and_dr_keeps_it_as_init() {
+    let dir = tmp("runs");
+    let cap = common::write_capture(&dir.join("capture"), 600, 128, 3);
+    let small = ["--guides", "60", "--children", "400"];
+    let (a, b, c) = (dir.join("no_dr"), dir.join("init"), dir.join("dr"));
+    let text_a = ok(&run(&[&small[..], &["--out", a.to_str().unwrap(), "--no-dr"]].concat(), &[&cap]));
+    ok(&run(&[&small[..], &["--out", b.to_str().unwrap(), "--stop-after", "init"]].concat(), &[&cap]));
+    let text_c = ok(&run(
+        &[&small[..], &["--out", c.to_str().unwrap(), "--dr-iters-guides", "4", "--dr-iters-children", "2"]].concat(),
+        &[&cap],
+    ));
+    let read = |p: PathBuf| std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    for f in ["strands.hair", "guides.hair"] {
+        assert!(read(a.join(f)) == read(b.join(f)), "{f}: --no-dr and --stop-after init differ");
+    }
+    assert!(read(c.join("init_strands.hair")) == read(a.join("strands.hair")), "DR's init_strands.hair differs");
+    assert!(read(c.join("init_guides.hair")) == read(a.join("guides.hair")), "DR's init_guides.hair differs");
+    assert!(read(c.join("strands.hair")) != read(a.join("strands.hair")), "DR did not move the strands");
+    for f in ["init_strands.hair", "loss.csv", "loss.png"] {
+        assert!(!a.join(f).exists(), "--no-dr wrote {f}");
+    }
+    let csv = String::from_utf8(read(c.join("loss.csv"))).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 4 + 2, "{csv}");
+    // Printed: stage times with DR's, and the metric table before and after DR.
+    assert!(!text_a.contains("after DR") && text_a.contains("strands before DR (init)"), "{text_a}");
+    for want in ["stage times:", "dr ", "strands before DR (init)", "strands after DR", "undirected", "2mm/20°"] {
+        assert!(text_c.contains(want), "{want:?} not in\n{text_c}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
