@@ -47,11 +47,16 @@ pub struct GaborParams {
     pub lambda: f32,
     /// Aspect ratio: σ along the strand is σ / γ.
     pub gamma: f32,
+    /// σ (pixels) of a Gaussian smoothing of the orientation field after the bank (0: none): the
+    /// confidence-weighted doubled-angle vectors (c cos 2θ, c sin 2θ) are averaged over the hair
+    /// pixels around each pixel and θ is read back from the mean.
+    #[serde(default)]
+    pub smooth: f32,
 }
 
 impl Default for GaborParams {
     fn default() -> Self {
-        Self { orientations: 24, sigma: 3.0, lambda: 6.0, gamma: 0.5 }
+        Self { orientations: 24, sigma: 3.0, lambda: 6.0, gamma: 0.5, smooth: 8.0 }
     }
 }
 
@@ -299,7 +304,63 @@ impl GaborBank {
                 crow[x] = if fmax > 1e-12 { (1.0 - mean / fmax).clamp(1e-4, 1.0) } else { 1e-4 };
             }
         });
-        OrientationMap { width: img.width, height: img.height, theta, confidence }
+        let mut map = OrientationMap { width: img.width, height: img.height, theta, confidence };
+        if self.params.smooth > 0.0 {
+            smooth_orientations(&mut map, self.params.smooth);
+        }
+        map
+    }
+}
+
+/// Separable Gaussian blur of `data` (w × h, row-major) with the given normalised kernel
+/// (`k.len()` = 2r + 1), zero outside the image. Rows then columns, each output a fixed-order sum.
+fn blur(data: &[f32], w: usize, h: usize, k: &[f32]) -> Vec<f32> {
+    let r = (k.len() / 2) as isize;
+    let mut tmp = vec![0.0f32; w * h];
+    tmp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let src = &data[y * w..(y + 1) * w];
+        for (x, o) in row.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (j, &kv) in k.iter().enumerate() {
+                let xx = x as isize + j as isize - r;
+                if xx >= 0 && (xx as usize) < w {
+                    s += kv * src[xx as usize];
+                }
+            }
+            *o = s;
+        }
+    });
+    let mut out = vec![0.0f32; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (j, &kv) in k.iter().enumerate() {
+            let yy = y as isize + j as isize - r;
+            if yy < 0 || yy as usize >= h {
+                continue;
+            }
+            let src = &tmp[yy as usize * w..(yy as usize + 1) * w];
+            for (o, &v) in row.iter_mut().zip(src) {
+                *o += kv * v;
+            }
+        }
+    });
+    out
+}
+
+/// Confidence-weighted Gaussian smoothing of θ in doubled-angle space over the hair pixels
+/// (confidence > 0); the confidence is kept.
+fn smooth_orientations(map: &mut OrientationMap, sigma: f32) {
+    let (w, h) = (map.width as usize, map.height as usize);
+    let r = (3.0 * sigma).ceil() as i32;
+    let mut k: Vec<f32> = (-r..=r).map(|i| (-0.5 * (i as f32 / sigma).powi(2)).exp()).collect();
+    let ks: f32 = k.iter().sum();
+    k.iter_mut().for_each(|v| *v /= ks);
+    let vx: Vec<f32> = map.theta.iter().zip(&map.confidence).map(|(t, c)| c * (2.0 * t).cos()).collect();
+    let vy: Vec<f32> = map.theta.iter().zip(&map.confidence).map(|(t, c)| c * (2.0 * t).sin()).collect();
+    let (bx, by) = (blur(&vx, w, h, &k), blur(&vy, w, h, &k));
+    for i in 0..w * h {
+        if map.confidence[i] > 0.0 && (bx[i] != 0.0 || by[i] != 0.0) {
+            map.theta[i] = (0.5 * by[i].atan2(bx[i])).rem_euclid(PI);
+        }
     }
 }
 
