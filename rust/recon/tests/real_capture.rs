@@ -30,7 +30,7 @@ fn orient2d_parameter_sweep() {
     for &(n, sigma, lambda, gamma) in
         &[(32usize, 2.0f32, 3.0f32, 0.5f32), (32, 3.0, 6.0, 0.5), (24, 3.0, 6.0, 0.5), (24, 4.0, 8.0, 0.5)]
     {
-        let bank = GaborBank::new(GaborParams { orientations: n, sigma, lambda, gamma });
+        let bank = GaborBank::new(GaborParams { orientations: n, sigma, lambda, gamma, ..Default::default() });
         for thr in [0.1f32, 0.5] {
             let mut errs = Vec::new();
             for (img, mask, gt) in &data {
