@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
-use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
+use hairrecon_core::metric::{evaluate, MetricOptions};
 use hairrecon_core::{Bvh, StrandSet};
 use hairrecon_recon::dr::{optimize, DrOptions, DrTargets};
 use hairrecon_recon::pipeline::load_orient2d;
@@ -32,14 +32,7 @@ impl Progress for Print {
 }
 
 fn table(pred: &StrandSet, gt: &StrandSet) -> String {
-    let opts = MetricOptions {
-        step: 0.001,
-        thresholds: vec![
-            Threshold { dist: 0.001, angle_deg: 10.0 },
-            Threshold { dist: 0.002, angle_deg: 20.0 },
-            Threshold { dist: 0.003, angle_deg: 30.0 },
-        ],
-    };
+    let opts = MetricOptions::default();
     evaluate(pred, gt, &opts).map(|r| r.table()).unwrap_or_else(|e| e.to_string())
 }
 

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
-use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
+use hairrecon_core::metric::{evaluate, MetricOptions};
 use hairrecon_core::Bvh;
 use hairrecon_recon::grow::{grow_guides, grow_one, interpolate_children, GrowParams, Stop};
 use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
@@ -120,14 +120,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(g) = &capture.gt_strands {
         let gt = read_strands(g)?;
         let gt = gt.select(&(0..gt.num_strands()).step_by(gt_every).collect::<Vec<_>>());
-        let opts = MetricOptions {
-            step: 0.001,
-            thresholds: vec![
-                Threshold { dist: 0.001, angle_deg: 10.0 },
-                Threshold { dist: 0.002, angle_deg: 20.0 },
-                Threshold { dist: 0.003, angle_deg: 30.0 },
-            ],
-        };
+        let opts = MetricOptions::default();
         let t = Instant::now();
         let r = evaluate(&children, &gt, &opts)?;
         println!("children vs gt ({:.1} s):\n{}", t.elapsed().as_secs_f64(), r.table());

@@ -29,7 +29,7 @@ use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{atomic_write, read_mesh, read_strands, write_strands, FormatError};
-use hairrecon_core::metric::{evaluate, MetricOptions, Threshold};
+use hairrecon_core::metric::{evaluate, MetricOptions};
 use hairrecon_core::{Bvh, StrandSet};
 use serde_json::json;
 use thiserror::Error;
@@ -268,14 +268,7 @@ fn load_gt(capture: &Capture, raw: &Bvh) -> Result<Option<Gt>, ReconError> {
 }
 
 fn strand_metric(pred: &StrandSet, gt: &StrandSet) -> serde_json::Value {
-    let opts = MetricOptions {
-        step: 0.001,
-        thresholds: vec![
-            Threshold { dist: 0.001, angle_deg: 10.0 },
-            Threshold { dist: 0.002, angle_deg: 20.0 },
-            Threshold { dist: 0.003, angle_deg: 30.0 },
-        ],
-    };
+    let opts = MetricOptions::default();
     match evaluate(pred, gt, &opts) {
         Ok(r) => serde_json::to_value(r).unwrap_or_default(),
         Err(e) => json!({ "error": e.to_string() }),
