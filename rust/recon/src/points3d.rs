@@ -406,6 +406,31 @@ fn fit_direction(views: &[MvsView], ids: impl Iterator<Item = usize>, p: Vec3, i
 /// Weight of a view where the point falls outside the hair.
 const OFF_HAIR_WEIGHT: f32 = 0.3;
 
+/// The cost of the line through `p` along `d` in `judges`: the confidence-weighted mean sin² of its
+/// angle to the views' orientation maps, a view where it falls outside the hair counting
+/// [`OFF_HAIR_WEIGHT`]; 1 when no view judges it.
+fn line_cost(views: &[MvsView], judges: impl Iterator<Item = usize>, p: Vec3, d: Vec3, offsets: &[f32]) -> f32 {
+    let (mut sum, mut wsum) = (0.0f32, 0.0f32);
+    for j in judges {
+        match views[j].see_line(p, d, offsets) {
+            Seen::Behind => {}
+            Seen::OffHair => {
+                sum += OFF_HAIR_WEIGHT;
+                wsum += OFF_HAIR_WEIGHT;
+            }
+            Seen::Hair { confidence, sin2 } => {
+                sum += confidence * sin2;
+                wsum += confidence;
+            }
+        }
+    }
+    if wsum > 0.0 {
+        sum / wsum
+    } else {
+        1.0
+    }
+}
+
 /// Estimates oriented points from every view. Checks for cancellation once per view.
 pub fn estimate(
     views: &[MvsView],
@@ -482,21 +507,7 @@ pub fn estimate(
                 let cost = |t: f32, phi: f32| -> (f32, Vec3, Vec3) {
                     let p = o + ray * t;
                     let d = e1 * phi.cos() + ray * phi.sin();
-                    let (mut sum, mut wsum) = (0.0f32, 0.0f32);
-                    for &j in vis {
-                        match views[j].see_line(p, d, offsets) {
-                            Seen::Behind => {}
-                            Seen::OffHair => {
-                                sum += OFF_HAIR_WEIGHT;
-                                wsum += OFF_HAIR_WEIGHT;
-                            }
-                            Seen::Hair { confidence, sin2 } => {
-                                sum += confidence * sin2;
-                                wsum += confidence;
-                            }
-                        }
-                    }
-                    (if wsum > 0.0 { sum / wsum } else { 1.0 }, p, d)
+                    (line_cost(views, vis.iter().copied(), p, d, offsets), p, d)
                 };
                 // 1. The direction at the prior depth (the orientation cost barely depends on depth).
                 let mut best = (f32::INFINITY, hit.t, 0.0f32);
@@ -558,27 +569,8 @@ pub fn estimate(
                 // included (its θ is as noisy as the others'), judged by the same cost plus the
                 // reference view.
                 if params.fit_direction {
-                    let judge = |d: Vec3| -> f32 {
-                        let (mut sum, mut wsum) = (0.0f32, 0.0f32);
-                        for j in vis.iter().copied().chain(std::iter::once(vi)) {
-                            match views[j].see_line(p, d, offsets) {
-                                Seen::Behind => {}
-                                Seen::OffHair => {
-                                    sum += OFF_HAIR_WEIGHT;
-                                    wsum += OFF_HAIR_WEIGHT;
-                                }
-                                Seen::Hair { confidence, sin2 } => {
-                                    sum += confidence * sin2;
-                                    wsum += confidence;
-                                }
-                            }
-                        }
-                        if wsum > 0.0 {
-                            sum / wsum
-                        } else {
-                            1.0
-                        }
-                    };
+                    let judge =
+                        |d: Vec3| line_cost(views, vis.iter().copied().chain(std::iter::once(vi)), p, d, offsets);
                     let fitted = fit_direction(views, vis.iter().copied().chain(std::iter::once(vi)), p, d, agree_s2);
                     let (c0, c1) = (judge(d), judge(fitted));
                     (best_cost, d) = if c1 < c0 { (c1, fitted) } else { (c0, d) };
