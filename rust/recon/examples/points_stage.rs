@@ -116,13 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         load_orient2d(&capture, &dir)?
     };
     let images: Vec<GrayImage> = capture.views.iter().map(|v| GrayImage::load(&v.image)).collect::<Result<_, _>>()?;
-    let views: Vec<MvsView> = capture
-        .views
-        .iter()
-        .zip(&maps)
-        .zip(&images)
-        .map(|((v, m), img)| MvsView { camera: &v.camera, map: m, image: Some(img) })
-        .collect();
+    let views = MvsView::for_capture(&capture, &maps, &images);
 
     let t = Instant::now();
     let pts = estimate(&views, &raw, &p, &Quiet)?;

@@ -333,13 +333,7 @@ pub fn reconstruct(
     let raw = Bvh::new(read_mesh(&capture.raw_mesh)?);
     progress.check()?;
     let images: Vec<GrayImage> = capture.views.iter().map(|v| GrayImage::load(&v.image)).collect::<Result<_, _>>()?;
-    let views: Vec<MvsView> = capture
-        .views
-        .iter()
-        .zip(&maps)
-        .zip(&images)
-        .map(|((v, m), img)| MvsView { camera: &v.camera, map: m, image: Some(img) })
-        .collect();
+    let views = MvsView::for_capture(capture, &maps, &images);
     let points = estimate(&views, &raw, &opts.mvs, progress)?;
     points.save_ply(&out_dir.join("points3d.ply"))?;
     times.push(("orient3d".into(), t.elapsed().as_secs_f64()));

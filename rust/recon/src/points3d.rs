@@ -211,6 +211,23 @@ pub struct MvsView<'a> {
     pub image: Option<&'a GrayImage>,
 }
 
+impl<'a> MvsView<'a> {
+    /// One view per capture view, with its orientation map and image (same order as the capture).
+    pub fn for_capture(
+        capture: &'a hairrecon_core::capture::Capture,
+        maps: &'a [OrientationMap],
+        images: &'a [GrayImage],
+    ) -> Vec<Self> {
+        capture
+            .views
+            .iter()
+            .zip(maps)
+            .zip(images)
+            .map(|((v, map), img)| MvsView { camera: &v.camera, map, image: Some(img) })
+            .collect()
+    }
+}
+
 /// How a 3D line (a point and a direction) looks in one view.
 enum Seen {
     /// The point is behind the camera.

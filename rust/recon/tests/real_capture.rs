@@ -61,13 +61,7 @@ fn orient3d_parameter_sweep() {
     let opts = ReconstructOptions { write_pictures: false, ..Default::default() };
     let (maps, _) = orient2d_stage(&cap, &out, &opts, &NoProgress).unwrap();
     let images: Vec<GrayImage> = cap.views.iter().map(|v| GrayImage::load(&v.image).unwrap()).collect();
-    let views: Vec<MvsView> = cap
-        .views
-        .iter()
-        .zip(&maps)
-        .zip(&images)
-        .map(|((v, m), img)| MvsView { camera: &v.camera, map: m, image: Some(img) })
-        .collect();
+    let views = MvsView::for_capture(&cap, &maps, &images);
     let raw = Bvh::new(read_mesh(&cap.raw_mesh).unwrap());
     let gt = read_strands(cap.gt_strands.as_ref().unwrap()).unwrap();
     let gi = PointIndex::from_strands(&gt, 0.001);

@@ -302,43 +302,31 @@ pub fn optimize(
     let mut loss_curve = Vec::with_capacity(steps_total);
     let (mut cg, mut solves) = (0usize, 0usize);
     if guide_stage {
-        let stats = if children.is_empty() {
-            run_stage(
-                StageInput {
-                    stage: DrStage::Guides,
-                    x: &mut gx,
-                    offsets: guides.offsets(),
-                    map: None,
-                    iterations: guide_steps,
-                    steps_before: 0,
-                    steps_total,
-                },
-                targets,
-                head,
-                opts,
-                progress,
-                &mut loss_curve,
-            )?
+        // With children, the guide stage renders them in place of the guides (a fixed linear map).
+        let mut map = if children.is_empty() {
+            None
         } else {
             let g0 = StrandSet::new(gx.clone(), guides.counts().to_vec()).map_err(|_| DrError::Empty)?;
             let c0 = StrandSet::new(cx.clone(), children.counts().to_vec()).map_err(|_| DrError::Empty)?;
-            let mut map = ChildMap::new(&g0, &c0, opts.child_k);
-            let stats = run_stage(
-                StageInput {
-                    stage: DrStage::Guides,
-                    x: &mut gx,
-                    offsets: guides.offsets(),
-                    map: Some(&mut map),
-                    iterations: guide_steps,
-                    steps_before: 0,
-                    steps_total,
-                },
-                targets,
-                head,
-                opts,
-                progress,
-                &mut loss_curve,
-            )?;
+            Some(ChildMap::new(&g0, &c0, opts.child_k))
+        };
+        let stats = run_stage(
+            StageInput {
+                stage: DrStage::Guides,
+                x: &mut gx,
+                offsets: guides.offsets(),
+                map: map.as_mut(),
+                iterations: guide_steps,
+                steps_before: 0,
+                steps_total,
+            },
+            targets,
+            head,
+            opts,
+            progress,
+            &mut loss_curve,
+        )?;
+        if let Some(map) = &map {
             map.forward(&gx, &mut cx);
             if let Some(h) = head {
                 let offs = children.offsets();
@@ -349,8 +337,7 @@ pub fn optimize(
                     }
                 });
             }
-            stats
-        };
+        }
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
