@@ -14,11 +14,22 @@ Nothing here imports bpy, so the tests use it too.
 
 from __future__ import annotations
 
+import os
 import struct
 import zlib
 from pathlib import Path
 
 import numpy as np
+
+
+def _write_atomic(path, data: bytes) -> None:
+    """Writes through a temporary file in the same folder and renames it, so that an interrupted run
+    never leaves a half-written file under the final name."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
 
 # ---------------------------------------------------------------------------------------------
 # .hair (Cem Yuksel): 128-byte header, then optional arrays in a fixed order.
@@ -61,7 +72,7 @@ def write_hair(path, points: np.ndarray, counts: np.ndarray, info: str = "hairre
     head += info.encode("ascii", "replace")[:88].ljust(88, b"\0")
     assert len(head) == 128
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_bytes(head + (counts - 1).astype("<u2").tobytes() + points.tobytes())
+    _write_atomic(path, head + (counts - 1).astype("<u2").tobytes() + points.tobytes())
 
 
 def strand_offsets(counts: np.ndarray) -> np.ndarray:
@@ -106,8 +117,7 @@ def write_png(path, img: np.ndarray) -> None:
     raw = np.concatenate([np.zeros((h, 1), np.uint8), rows], axis=1).tobytes()
     out = b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", struct.pack(">2I5B", w, h, depth, colour, 0, 0, 0))
     out += _png_chunk(b"IDAT", zlib.compress(raw, 6)) + _png_chunk(b"IEND", b"")
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_bytes(out)
+    _write_atomic(path, out)
 
 
 def read_png(path) -> np.ndarray:
@@ -207,7 +217,7 @@ def write_exr(path, channels: dict[str, np.ndarray]) -> None:
     for y in range(h):
         body += struct.pack("<ii", y, line_bytes) + stacked[y].tobytes()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_bytes(header + offsets.astype("<u8").tobytes() + bytes(body))
+    _write_atomic(path, header + offsets.astype("<u8").tobytes() + bytes(body))
 
 
 def _exr_unzip(block: bytes, expected: int) -> bytes:
@@ -399,4 +409,4 @@ def write_ply(path, vertices: np.ndarray, triangles: np.ndarray) -> None:
     fa["n"] = 3
     fa["i"] = f
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_bytes(head.encode() + v.tobytes() + fa.tobytes())
+    _write_atomic(path, head.encode() + v.tobytes() + fa.tobytes())

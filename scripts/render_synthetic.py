@@ -49,7 +49,7 @@ REPO = Path(__file__).resolve().parent.parent
 
 PRESETS = {
     # strands only matter to make_benchmark.py (it asks synth-hair for that many); views, height, samples here.
-    "test": dict(strands=2000, views=16, height=256, samples=16),
+    "test": dict(strands=2000, views=16, height=256, samples=32),
     "paper": dict(strands=50000, views=58, height=512, samples=32),
 }
 
@@ -117,6 +117,11 @@ def parse_args(argv=None):
         "--skip-photos",
         action="store_true",
         help="redo only the fusion depth maps and the raw mesh of an existing capture (same arguments otherwise)",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the views of an interrupted run whose photo, mask, gt orientation and gt depth all exist",
     )
     p.add_argument("--only-view", type=int, help="render only this view (for pictures); implies --no-fuse")
     p.add_argument(
@@ -456,6 +461,11 @@ def main(argv=None):
     for n, i in enumerate([] if a.skip_photos else views):
         name, ob, *_ = cams[i]
         t0 = time.time()
+        done = [out / "images" / f"{name}.png", out / "masks" / f"{name}.png"]
+        done += [out / "gt" / d / f"{name}.exr" for d in ("orientation", "depth")]
+        if a.resume and all(f.is_file() for f in done):
+            print(f"  view {n + 1}/{len(views)} {name}: kept from the interrupted run", flush=True)
+            continue
         sc.camera = ob
         ex = render_exr(bpy, sc, out / "_tmp" / f"{name}.exr")
         rgb = np.stack([ex[f"ViewLayer.Combined.{c}"] for c in "RGB"], axis=2)

@@ -4,8 +4,9 @@ Each check prints its figure (run pytest with -s to see them):
 
 - mask: ground-truth strand points that the head does not hide (ray cast against head.ply) fall on
   pixels with mask > 0 after a 1-pixel dilation, for at least 97% of points in every view;
-- orientation: gt/orientation agrees with the projected ground-truth tangents visible in each pixel:
-  mean undirected error under 3 degrees where the visible strands agree among themselves;
+- orientation: gt/orientation agrees with the projected ground-truth tangents that each pixel's
+  samples see (coverage, transmittance, pixel filter, head occlusion): mean undirected error under
+  3 degrees over all hair pixels;
 - raw mesh: the ground-truth points that the photographs see in two or more views (their depth
   within 1 mm of gt/depth) lie within 3 mm of raw_mesh.ply: at least 95% of them where the mesh is
   fused from the photographs' depth (dense hair), 70% where the hair is too sparse to look like a
@@ -120,55 +121,93 @@ def _dense_gt(cap: Path, sub: int = 4):
     return pts, tans
 
 
+def _blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
+    """Cycles' pixel filter (Blackman-Harris of total width `width` pixels), per axis."""
+    v = 2 * np.pi * (x / width + 0.5)
+    f = 0.35875 - 0.48829 * np.cos(v) + 0.14128 * np.cos(2 * v) - 0.01168 * np.cos(3 * v)
+    return np.where(np.abs(x) <= 0.5 * width, f, 0.0)
+
+
 def test_orientation_matches_projected_tangents(test_capture):
-    """Per hair pixel, the reference is the mean doubled angle of the ground-truth tangents that are
-    visible in the pixel (a z-buffer of the resampled strands on 3x3 sub-pixels), projected with the
-    camera's Jacobian. Pixels where that reference is ambiguous (strands crossing inside the pixel:
-    coherence of the visible tangents < 0.98) are left out; the figure for all pixels is printed."""
+    """Per hair pixel, the reference is what a camera sample's first hit would see, averaged the way
+    the renderer averages its samples: the doubled angle of every projected ground-truth tangent
+    (camera Jacobian) whose bit of strand lies in the pixel's footprint, weighted by
+    - the bit's coverage of the pixel (strand width x projected length, in pixels squared),
+    - the transmittance of the strands in front of it in the pixel (front-to-back alpha),
+    - Cycles' pixel filter (Blackman-Harris, 1.5 px), and
+    - zero if the head hides it (ray cast).
+    Mean undirected error over all hair pixels under 3 degrees (issue 3). What is left is the
+    renderer's sampling noise: pixels that only one or two of the samples saw hair in."""
     cap = test_capture
-    sub, ss = (4, 3) if STEP <= 2 else (2, 2)  # lighter for paper-preset captures
+    info = json.loads((cap / "render_info.json").read_text())
+    radius = info["radius_mm"] * 1e-3
+    sub = 8 if STEP <= 2 else 3  # points per segment; lighter for paper-preset captures
     pts, tans = _dense_gt(cap, sub)
-    errs, cohs = [], []
-    for v, k, r, t in _views(cap):
+    p, c = hio.read_hair(cap / "gt" / "strands.hair")
+    bit = np.linalg.norm(np.diff(p.astype(np.float64), axis=0), axis=1)
+    bit = float(np.median(bit[bit > 0])) / sub  # the length of strand each point stands for
+    bvh = _head_bvh(cap)
+    errs, covs = [], []
+    views = list(_views(cap))
+    if STEP > 2:
+        views = views[:: max(1, len(views) // 4)]
+    for v, k, r, t in views:
         w, h = v["width"], v["height"]
         uv, pc = _project(k, r, t, pts)
-        o = hio.read_exr(cap / v["gt_orientation"])
-        su = np.floor((uv + 0.5) * ss).astype(np.int64)
-        ok = (su[:, 0] >= 0) & (su[:, 0] < w * ss) & (su[:, 1] >= 0) & (su[:, 1] < h * ss) & (pc[:, 2] > 0)
+        ui, ok = _inside(uv, w, h)
+        ok &= pc[:, 2] > 0
         idx = np.flatnonzero(ok)
-        sidx = su[idx, 1] * (w * ss) + su[idx, 0]
-        zbuf = np.full(w * h * ss * ss, np.inf)
-        np.minimum.at(zbuf, sidx, pc[idx, 2])
-        idx = idx[pc[idx, 2] <= zbuf[sidx] + 3e-4]
-        pix = (su[idx, 1] // ss) * w + su[idx, 0] // ss
+        # The head hides a point only if it lies behind what the pixel's sample hit.
+        gd = hio.read_exr(cap / v["gt_depth"])
+        gd = gd.get("Y", gd.get("R"))
+        cand = idx[pc[idx, 2] > gd[ui[idx, 1], ui[idx, 0]] + 1e-3]
+        hidden = np.zeros(len(pts), bool)
+        hidden[cand[_hidden_by_head(bvh, -r.T @ t, pts[cand])]] = True
+        idx = idx[~hidden[idx]]
+        pix = ui[idx, 1] * w + ui[idx, 0]
         x, y, z = pc[idx].T
         tc = tans[idx] @ r.T
-        # Projected tangent J T (J: Jacobian of the pinhole projection), as a doubled angle.
         du = k[0, 0] * (tc[:, 0] * z - x * tc[:, 2]) / z**2
         dv = k[1, 1] * (tc[:, 1] * z - y * tc[:, 2]) / z**2
         n2 = du * du + dv * dv + 1e-30
-        c2 = np.bincount(pix, (du * du - dv * dv) / n2, w * h)
-        s2 = np.bincount(pix, 2 * du * dv / n2, w * h)
-        n = np.bincount(pix, None, w * h)
-        has = (n > 0) & (o["B"].ravel() > 0)
+        cos2, sin2 = (du * du - dv * dv) / n2, 2 * du * dv / n2
+        alpha = np.minimum((2 * radius * k[0, 0] / z) * bit * np.sqrt(n2), 0.999)
+        # Transmittance in front of each point, per pixel: exp(sum of log(1 - alpha) nearer).
+        order = np.lexsort((z, pix))
+        la = np.log1p(-alpha[order])
+        cs = np.cumsum(la)
+        first = np.r_[0, np.flatnonzero(np.diff(pix[order])) + 1]
+        group = np.repeat(first, np.diff(np.r_[first, len(order)]))
+        wgt = np.empty_like(alpha)
+        wgt[order] = alpha[order] * np.exp(cs - la - np.where(group > 0, cs[group - 1], 0.0))
+        c2, s2 = np.zeros(w * h), np.zeros(w * h)
+        for oy in (-1, 0, 1):
+            for ox in (-1, 0, 1):
+                px, py = ui[idx, 0] + ox, ui[idx, 1] + oy
+                f = _blackman_harris(uv[idx, 0] - px, 1.5) * _blackman_harris(uv[idx, 1] - py, 1.5) * wgt
+                m = (f > 0) & (px >= 0) & (px < w) & (py >= 0) & (py < h)
+                q = py[m] * w + px[m]
+                c2 += np.bincount(q, cos2[m] * f[m], w * h)
+                s2 += np.bincount(q, sin2[m] * f[m], w * h)
+        o = hio.read_exr(cap / v["gt_orientation"])
+        has = (np.hypot(c2, s2) > 0) & (o["B"].ravel() > 0)
         ref = 0.5 * np.arctan2(s2[has], c2[has])
         got = 0.5 * np.arctan2(o["G"].ravel()[has], o["R"].ravel()[has])
         d = np.abs(ref - got) % np.pi
         e = np.degrees(np.minimum(d, np.pi - d))
-        coh = np.hypot(c2[has], s2[has]) / n[has]
         print(f"orientation {v['name']}: {len(e)} hair pixels, mean error {e.mean():.2f} deg, median {np.median(e):.2f}")
         errs.append(e)
-        cohs.append(coh)
-    e, coh = np.concatenate(errs), np.concatenate(cohs)
-    clear = coh >= 0.98
+        covs.append(hio.read_png(cap / v["mask"])[:, :, 0].ravel()[has] / 65535.0)
+    e, cov = np.concatenate(errs), np.concatenate(covs)
+    low = cov < 0.1
     print(
-        f"orientation: all {len(e)} hair pixels: mean {e.mean():.2f} deg, median {np.median(e):.2f}; "
-        f"{clear.mean():.3f} of them unambiguous: mean {e[clear].mean():.3f} deg, median {np.median(e[clear]):.2f}, "
-        f"90th pct {np.percentile(e[clear], 90):.2f}"
+        f"orientation: all {len(e)} hair pixels: mean {e.mean():.2f} deg, median {np.median(e):.2f}, "
+        f"90th pct {np.percentile(e, 90):.2f}; the {low.mean():.3f} of them that fewer than 10% of the samples "
+        f"saw hair in: mean {e[low].mean() if low.any() else 0:.2f}, the rest {e[~low].mean():.2f}"
     )
-    assert clear.sum() > 1000
-    assert e[clear].mean() < 3.0
-    assert np.median(e) < 2.0
+    assert len(e) > 1000
+    assert e.mean() < 3.0
+    assert np.median(e) < 1.5
 
 
 def _seen_count(cap: Path, pts: np.ndarray, depth_dir: str | None, tol: float) -> np.ndarray:

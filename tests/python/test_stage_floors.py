@@ -1,0 +1,77 @@
+"""Per-stage floors of the reconstruction before DR on the rendered test-preset capture (issue 5).
+
+Runs ``hairrecon reconstruct CAPTURE --out DIR --stop-after init`` on the session's test capture (the
+``test_capture`` fixture: straight, 2,000 strands, seed 0, 16 views of 256 px, 32 samples) and checks
+every stage's metric in ``DIR/metrics.json`` against a floor. The render and the pipeline are
+deterministic, so the figures repeat exactly; each floor sits a few points under the measured value
+(measured 2026-11-21, same command) so that a real regression trips it and a harmless change does
+not:
+
+| stage     | metric                                           | measured | floor   |
+|-----------|--------------------------------------------------|----------|---------|
+| orient2d  | mean undirected error against gt/orientation     | 12.1 deg | <= 14.5 |
+| orient2d  | the same, most confident half of the hair pixels |  9.4 deg | <= 11.5 |
+| orient3d  | precision of the points at 2 mm / 20 deg         | 84.3 %   | >= 80   |
+| orient3d  | coverage of the visible hair surface             | 37.8 %   | >= 33   |
+| direction | points whose direction agrees with the GT        | 100.0 %  | >= 97   |
+| init      | strands: undirected F1 at 2 mm / 20 deg          | 47.2     | >= 43   |
+| init      | strands: directed F1 within 3 of undirected      | 2.7      | <= 3.5  |
+| init      | guides: undirected F1 at 2 mm / 20 deg           | 27.6     | >= 24   |
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+
+from conftest import hairrecon_bin
+
+
+@pytest.fixture(scope="module")
+def init_metrics(test_capture, tmp_path_factory):
+    out = tmp_path_factory.mktemp("floors") / "rec"
+    cmd = [str(hairrecon_bin()), "reconstruct", str(test_capture), "--out", str(out), "--stop-after", "init"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 0, f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}"
+    print(r.stdout[-1500:])
+    return json.loads((out / "metrics.json").read_text())
+
+
+def _f1(m: dict, kind: str, dist_mm: float) -> float:
+    (row,) = [x for x in m[kind] if abs(x["dist_mm"] - dist_mm) < 1e-9]
+    return row["f1"]
+
+
+def test_orient2d_floor(init_metrics):
+    m = init_metrics["orient2d"]
+    print(f"orient2d: mean {m['mean_deg']:.2f} deg, confident half {m['mean_confident_half_deg']:.2f} deg")
+    assert m["pixels"] > 10_000
+    assert m["mean_deg"] <= 14.5
+    assert m["mean_confident_half_deg"] <= 11.5
+
+
+def test_orient3d_floor(init_metrics):
+    m = init_metrics["orient3d"]
+    print(f"orient3d: {m['points']} points, precision {m['precision']:.1f} %, coverage {m['coverage']:.1f} %")
+    assert m["points"] > 10_000
+    assert m["precision"] >= 80.0
+    assert m["coverage"] >= 33.0
+
+
+def test_direction_floor(init_metrics):
+    m = init_metrics["direction"]
+    print(f"direction: {m['agreement']:.2f} % of {m['judged']} points agree with the ground truth")
+    assert m["judged"] > 10_000
+    assert m["agreement"] >= 97.0
+
+
+def test_init_floor(init_metrics):
+    s, g = init_metrics["init_strands"], init_metrics["init_guides"]
+    und, dirc = _f1(s, "undirected", 2.0), _f1(s, "directed", 2.0)
+    gu = _f1(g, "undirected", 2.0)
+    print(f"init: strands undirected F1 {und:.1f}, directed {dirc:.1f}; guides undirected {gu:.1f} (2 mm / 20 deg)")
+    assert und >= 43.0
+    assert und - dirc <= 3.5
+    assert gu >= 24.0
