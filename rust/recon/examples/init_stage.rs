@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example init_stage -- CAPTURE DIR OUT [key=value ...]`
 //! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
-//! `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
+//! `gravity`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
 //! ground-truth strand only, for speed).
 
 use std::path::PathBuf;
@@ -53,6 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "band" => lp.band = f,
             "outer_margin" => lp.outer_margin = f,
             "scalp_tangent" => lp.scalp_tangent = f,
+            "gravity" => lp.gravity = f,
             "step" => gp.step = f,
             "grow_outer" => gp.outer_margin = f,
             "max_gap" => gp.max_gap = f,
@@ -60,6 +61,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "exit_after" => gp.exit_after = f,
             "loop_window" => gp.loop_window = f,
             "loop_distance" => gp.loop_distance = f,
+            "escape_length" => gp.escape_length = f,
+            "escape_gravity" => gp.escape_gravity = f,
+            "max_escapes" => gp.max_escapes = f as u32,
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
             "gt_every" => gt_every = (f as usize).max(1),

@@ -42,7 +42,10 @@ pub struct GrowParams {
     pub k: usize,
     /// Growth goes straight on through up to this length of non-hair voxels, metres.
     pub max_gap: f32,
-    /// At the outer surface, growth ends when the flow points out of it with a cosine above this.
+    /// At the outer surface, growth ends when the flow points out of it with a cosine above this;
+    /// 1 (the default) turns the rule off: the strand slides along the surface instead, and ends
+    /// only more than `outer_margin` outside it. Measured on the paper preset (straight), ending
+    /// at 0.99 cut the guides to 27 cm mean against the ground truth's 45 cm.
     pub exit_cos: f32,
     /// Over the first this many metres of a strand the exit rule does not apply: the strand slides
     /// along the outer surface instead. Near the scalp the hair layer is a voxel or two thick and
@@ -53,6 +56,12 @@ pub struct GrowParams {
     /// off. A helical curl never comes back closer than its pitch (about a centimetre).
     pub loop_window: f32,
     pub loop_distance: f32,
+    /// A strand caught in a vortex does not end there: the circle is cut and the strand leaves it
+    /// under gravity (the field blended with straight down, `escape_gravity` of the way) for
+    /// `escape_length` metres, then follows the field again; at most `max_escapes` times.
+    pub escape_length: f32,
+    pub escape_gravity: f32,
+    pub max_escapes: u32,
 }
 
 impl Default for GrowParams {
@@ -64,10 +73,13 @@ impl Default for GrowParams {
             head_clearance: 0.001,
             k: 4,
             max_gap: 0.02,
-            exit_cos: 0.99,
+            exit_cos: 1.0,
             exit_after: 0.0,
             loop_window: 0.05,
             loop_distance: 0.004,
+            escape_length: 0.05,
+            escape_gravity: 0.8,
+            max_escapes: 8,
         }
     }
 }
@@ -141,9 +153,13 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
     // Points since the field was last seen (dropped if growth ends inside a gap).
     let mut gap = 0usize;
     let mut stop = Stop::MaxLength;
-    for s in 0..max_steps {
+    let (mut escapes, mut escaping) = (0u32, 0usize);
+    let mut s = 0usize;
+    while s < max_steps {
+        let step_no = s;
+        s += 1;
         // Leave the root along S for the first steps, blending into the field.
-        let blend = if s < 3 { 0.5 } else { 0.0 };
+        let blend = if step_no < 3 { 0.5 } else { 0.0 };
         let d = match dir_at(p, prev) {
             Some(d1) => {
                 let d1 = (d1 * (1.0 - blend) + prev * blend).normalize();
@@ -153,6 +169,11 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
             None => None,
         };
         let d = match d {
+            Some(d) if escaping > 0 => {
+                gap = 0;
+                escaping -= 1;
+                (d * (1.0 - params.escape_gravity) + Vec3::NEG_Z * params.escape_gravity).normalize_or(d)
+            }
             Some(d) => {
                 gap = 0;
                 d
@@ -176,7 +197,7 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         if so > -0.5 * flow.grid.voxel {
             nrm = gradient(flow, &flow.sd_outer, p);
             let c = d.dot(nrm);
-            if c > params.exit_cos && s as f32 * params.step >= params.exit_after {
+            if params.exit_cos < 1.0 && c > params.exit_cos && step_no as f32 * params.step >= params.exit_after {
                 stop = Stop::Outside;
                 break;
             }
@@ -213,9 +234,19 @@ pub fn grow_one(flow: &FlowField, root: Vec3, start: Vec3, params: &GrowParams) 
         if w >= 2 && pts.len() > w {
             let d2 = params.loop_distance * params.loop_distance;
             if let Some(back) = pts[..pts.len() - 1 - w].iter().position(|q| q.distance_squared(p) < d2) {
-                stop = Stop::Loop;
                 pts.truncate(back + 1);
                 gap = 0;
+                if escapes < params.max_escapes && params.escape_length > 0.0 {
+                    escapes += 1;
+                    escaping = (params.escape_length / params.step).ceil() as usize;
+                    p = pts[back];
+                    if back > 0 {
+                        prev = (pts[back] - pts[back - 1]).normalize_or(prev);
+                    }
+                    s = pts.len() - 1;
+                    continue;
+                }
+                stop = Stop::Loop;
                 break;
             }
         }
@@ -362,7 +393,7 @@ mod tests {
     fn a_vortex_ends_as_a_loop_and_the_circle_is_cut() {
         // Circles about the z axis: without the loop rule a strand circles until max_length.
         let f = flow(|p| Vec3::new(-p.y, p.x, 0.0).normalize_or(Vec3::X));
-        let params = GrowParams::default();
+        let params = GrowParams { max_escapes: 0, ..GrowParams::default() };
         let root = Vec3::new(0.02, 0.0, 0.0);
         let (pts, stop) = grow_one(&f, root, Vec3::Y, &params);
         assert_eq!(stop, Stop::Loop);
@@ -371,6 +402,23 @@ mod tests {
         assert!(len < 0.02, "kept {len} m of a vortex");
         let (_, stop) = grow_one(&f, root, Vec3::Y, &GrowParams { loop_window: 0.0, ..params });
         assert_eq!(stop, Stop::MaxLength);
+    }
+
+    #[test]
+    fn a_strand_escapes_a_vortex_under_gravity_and_keeps_no_circle() {
+        // The same vortex, with the default escapes: each time the strand comes round, the circle is
+        // cut and it leaves downwards for `escape_length`; it ends far below its root, and nothing
+        // of what it kept comes back near itself.
+        let f = flow(|p| Vec3::new(-p.y, p.x, 0.0).normalize_or(Vec3::X));
+        let params = GrowParams::default();
+        let (pts, stop) = grow_one(&f, Vec3::new(0.02, 0.0, 0.0), Vec3::Y, &params);
+        let low = pts.last().unwrap().z;
+        assert!(low < -0.15, "ended at z = {low} ({stop:?})");
+        let w = (params.loop_window / params.step).round() as usize;
+        for (i, p) in pts.iter().enumerate().skip(w + 1) {
+            let back = pts[..i - w].iter().map(|q| q.distance(*p)).fold(f32::MAX, f32::min);
+            assert!(back >= params.loop_distance, "point {i} comes back within {back} m");
+        }
     }
 
     #[test]
@@ -397,7 +445,7 @@ mod tests {
         for i in 0..f.grid.len() {
             f.sd_outer[i] = f.grid.centre(i).z;
         }
-        let params = GrowParams::default();
+        let params = GrowParams { exit_cos: 0.99, ..GrowParams::default() };
         let root = Vec3::new(0.0, 0.0, -0.05);
         let (pts, stop) = grow_one(&f, root, Vec3::Z, &params);
         assert_eq!(stop, Stop::Outside);

@@ -115,6 +115,12 @@ pub struct LaplaceParams {
     /// pore along S but lies along the head a few millimetres above it, and a voxel next to the
     /// scalp is 4 mm thick; 0 keeps S itself, 1 keeps only its tangential part.
     pub scalp_tangent: f32,
+    /// Weight of a prior that pulls every free voxel toward straight down (−Z), relative to the
+    /// weight 1 of each neighbour: a screened Laplace equation. Far from every directed point the
+    /// plain harmonic field is free to circle (the hair hanging below the head, between its outer
+    /// layers, has no condition at all) and strands grown through it loop; the prior fades such a
+    /// region into gravity over about 1/√gravity voxels and barely moves the field near a point.
+    pub gravity: f32,
 }
 
 impl Default for LaplaceParams {
@@ -128,6 +134,7 @@ impl Default for LaplaceParams {
             max_iterations: 400,
             tolerance: 1e-4,
             scalp_tangent: 0.0,
+            gravity: 0.0,
         }
     }
 }
@@ -283,8 +290,9 @@ pub fn solve_flow(
     let (deg, rhs): (Vec<f32>, Vec<Vec3>) = free
         .par_iter()
         .map(|&i| {
-            let mut d = eps;
-            let mut b = Vec3::ZERO;
+            let g = params.gravity.max(0.0);
+            let mut d = eps + g;
+            let mut b = Vec3::NEG_Z * g;
             for j in nb_of(i).into_iter().flatten() {
                 match label[j] {
                     1 => d += 1.0,
