@@ -120,6 +120,8 @@ pub struct LaplaceParams {
     /// plain harmonic field is free to circle (the hair hanging below the head, between its outer
     /// layers, has no condition at all) and strands grown through it loop; the prior fades such a
     /// region into gravity over about 1/√gravity voxels and barely moves the field near a point.
+    /// Off by default: on the paper preset (straight) 0.003–0.1 moved the init F1 by under one
+    /// point (`examples/init_stage ... gravity=0.03`); the loops sit where the points are.
     pub gravity: f32,
 }
 
