@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example init_stage -- CAPTURE DIR OUT [key=value ...]`
 //! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
-//! `gravity`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
+//! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
 //! ground-truth strand only, for speed).
 
 use std::path::PathBuf;
@@ -18,6 +18,7 @@ use hairrecon_core::metric::{evaluate, MetricOptions};
 use hairrecon_core::Bvh;
 use hairrecon_recon::grow::{grow_guides, grow_one, interpolate_children, GrowParams, Stop};
 use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
+use hairrecon_recon::metrics::PointIndex;
 use hairrecon_recon::pipeline::load_points;
 use hairrecon_recon::progress::Progress;
 use hairrecon_recon::roots::{sample_roots, Scalp};
@@ -64,6 +65,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "escape_length" => gp.escape_length = f,
             "escape_gravity" => gp.escape_gravity = f,
             "max_escapes" => gp.max_escapes = f as u32,
+            "trace_radius" => gp.trace_radius = f,
+            "trace_weight" => gp.trace_weight = f,
+            "trace_pull" => gp.trace_pull = f,
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
             "gt_every" => gt_every = (f as usize).max(1),
@@ -95,14 +99,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let groots = sample_roots(&scalp, guides_n, 0)?;
     let croots = sample_roots(&scalp, children_n, 1)?;
     let t = Instant::now();
-    let (guides, gstats) = grow_guides(&flow, &groots, &gp, &Quiet)?;
+    let trace = (gp.trace_radius > 0.0).then(|| PointIndex::new(points.positions.clone(), points.directions.clone()));
+    let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &groots, &gp, &Quiet)?;
     let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &Quiet)?;
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
     // Where the guides stop, by reason: a histogram of the tip height (10 cm bins from -0.5 m).
     let mut hist = std::collections::BTreeMap::<String, [u32; 8]>::new();
     for i in 0..groots.len() {
-        let (pts, stop) = grow_one(&flow, groots.positions[i], groots.growth[i], &gp);
+        let (pts, stop) = grow_one(&flow, trace.as_ref(), groots.positions[i], groots.growth[i], &gp);
         let z = pts.last().map_or(0.0, |p| p.z);
         let b = (((z + 0.5) / 0.1).floor().max(0.0) as usize).min(7);
         let key = match stop {

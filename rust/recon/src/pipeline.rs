@@ -402,7 +402,9 @@ pub fn reconstruct(
         let (flow, stats) = solve_flow(&raw, &inner, &scalp, &directed, &opts.laplace, progress)?;
         metrics.insert("laplace_stats".into(), serde_json::to_value(stats).unwrap_or_default());
         flow.save(&out_dir.join("flow.bin"))?;
-        let (guides, gstats) = grow_guides(&flow, &guide_roots, &opts.grow, progress)?;
+        let trace = (opts.grow.trace_radius > 0.0)
+            .then(|| PointIndex::new(directed.positions.clone(), directed.directions.clone()));
+        let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &guide_roots, &opts.grow, progress)?;
         metrics.insert("grow_stats".into(), serde_json::to_value(gstats).unwrap_or_default());
         let children = interpolate_children(&guides, &child_roots, Some(&flow), &opts.grow, progress)?;
         (guides, children)
