@@ -68,6 +68,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "trace_radius" => gp.trace_radius = f,
             "trace_weight" => gp.trace_weight = f,
             "trace_pull" => gp.trace_pull = f,
+            "max_turn_deg" => gp.max_turn = f.to_radians(),
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
             "gt_every" => gt_every = (f as usize).max(1),

@@ -72,6 +72,8 @@ pub struct GrowParams {
     pub trace_weight: f32,
     /// Tracing: the pull toward the points' centre, per radius of offset.
     pub trace_pull: f32,
+    /// The largest turn per step, radians: no kinks for the simulation or the DR's segment evening.
+    pub max_turn: f32,
 }
 
 impl Default for GrowParams {
@@ -93,6 +95,7 @@ impl Default for GrowParams {
             trace_radius: 0.0025,
             trace_weight: 0.05,
             trace_pull: 1.5,
+            max_turn: 40f32.to_radians(),
         }
     }
 }
@@ -142,6 +145,17 @@ pub struct GrowStats {
     pub max_length: u64,
     pub loops: u64,
     pub mean_length: f64,
+}
+
+/// `d` turned back toward `prev` so that the angle between them is at most `max_turn`.
+fn limit_turn(prev: Vec3, d: Vec3, max_turn: f32) -> Vec3 {
+    let c = prev.dot(d).clamp(-1.0, 1.0);
+    if c >= max_turn.cos() {
+        return d;
+    }
+    let axis = prev.cross(d);
+    let axis = if axis.length_squared() > 1e-12 { axis.normalize() } else { prev.any_orthonormal_vector() };
+    glam::Quat::from_axis_angle(axis, max_turn) * prev
 }
 
 /// The direction the directed points near `p` give a strand going `prev`, and their weight.
@@ -244,7 +258,8 @@ pub fn grow_one(
             stop = Stop::Grid;
             break;
         };
-        let mut d = d;
+        // A strand bends by at most `max_turn` per step (a 6.5 mm curl turns 18° per 2 mm step).
+        let mut d = limit_turn(prev, d, params.max_turn);
         let mut nrm = Vec3::ZERO;
         if so > -0.5 * flow.grid.voxel {
             nrm = gradient(flow, &flow.sd_outer, p);
