@@ -14,14 +14,13 @@ not:
 | orient3d  | precision of the points at 2 mm / 20 deg         | 84.3 %   | >= 80   |
 | orient3d  | coverage of the visible hair surface             | 37.8 %   | >= 33   |
 | direction | points whose direction agrees with the GT        | 100.0 %  | >= 97   |
-| init      | strands: undirected F1 at 2 mm / 20 deg          | 49.3     | >= 47   |
-| init      | strands: directed F1 within 3 of undirected      | 3.5      | <= 4.5  |
-| init      | guides: undirected F1 at 2 mm / 20 deg           | 34.1     | >= 31   |
+| init      | strands: undirected F1 at 2 mm / 20 deg          | 56.1     | >= 53   |
+| init      | strands: directed F1 within 3 of undirected      | 2.3      | <= 3.5  |
+| init      | guides: undirected F1 at 2 mm / 20 deg           | 36.3     | >= 33   |
 
-Session 4 changed the direction solver (least squares over the graph) and let guides trace the 3D
-points: on this sparse capture the guides gained (30.2 -> 34.1) and the children lost 2 points (51.3
--> 49.3) with a wider directed gap (2.8 -> 3.5); on the dense paper preset straight the children gained
-(75.9 -> 77.9, gap 2.1), which is what the issue's targets are set on.
+Session 4 changed the direction solver (least squares over the graph), let guides trace the 3D points
+and limited a step's turn to 40 degrees: strands 51.3 -> 56.1, guides 30.2 -> 36.3 (tracing alone,
+without the turn limit, gave 49.3 and 34.1 here).
 """
 
 from __future__ import annotations
@@ -77,6 +76,6 @@ def test_init_floor(init_metrics):
     und, dirc = _f1(s, "undirected", 2.0), _f1(s, "directed", 2.0)
     gu = _f1(g, "undirected", 2.0)
     print(f"init: strands undirected F1 {und:.1f}, directed {dirc:.1f}; guides undirected {gu:.1f} (2 mm / 20 deg)")
-    assert und >= 47.0
-    assert und - dirc <= 4.5
-    assert gu >= 31.0
+    assert und >= 53.0
+    assert und - dirc <= 3.5
+    assert gu >= 33.0
