@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
-//! `views`, `reparam`, `n`, `guide_opt`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `eval` (0: no metric table), and `upscale` (an integer: every
+//! `views`, `reparam`, `n`, `guide_opt`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `eval` (0: no metric table), and `upscale` (an integer: every
 //! view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
 
@@ -104,6 +104,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "upscale" => upscale = (f as usize).max(1),
             "cg_tol" => o.cg_tolerance = f,
             "eval" => eval = f > 0.5,
+            "equalize" => o.equalize_at_end = f > 0.5,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
@@ -203,6 +204,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&out)?;
     write_strands(out.join("guides.hair"), &r.guides)?;
     write_strands(out.join("strands.hair"), &r.children)?;
+    hairrecon_recon::dr::report::write_loss_csv(&out.join("loss.csv"), &r.loss_curve)?;
     if let (Some(g), true) = (&capture.gt_strands, eval) {
         let gt = read_strands(g)?;
         println!("before DR (children):\n{}", table(&children, &gt));

@@ -32,7 +32,7 @@ pub struct LossWeights {
 
 impl Default for LossWeights {
     fn default() -> Self {
-        Self { mask: 1.0, orientation: 0.5, curvature: 0.05, length: 0.05 }
+        Self { mask: 1.0, orientation: 0.5, curvature: 0.5, length: 0.5 }
     }
 }
 

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use super::adam::Adam;
 use super::children::ChildMap;
-use super::losses::{image_loss, median_segment_length, regularizers, LossTerms};
+use super::losses::{image_loss, median_segment_length, regularizers, LossTerms, LossWeights};
 use super::reparam::{LaplacianParams, Reparam};
 use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
@@ -71,7 +71,24 @@ pub struct Evaluator {
     g_render: Vec<Vec3>,
     /// Length scale of the regularizers (median initial segment length).
     pub scale: f32,
+    /// Factor of the regularizers: the mean hair area of a view in pixels over the number of
+    /// optimized points (see [`regularizer_factor`]).
+    pub reg_factor: f32,
     settings: RasterSettings,
+}
+
+/// The factor that puts the regularizers on the scale of the image losses: the mean hair area of a
+/// view (the sum of its mask, pixels) over the number of optimized points. `L_m` and `L_o` are sums
+/// over the pixels of a view, so with this factor a weight means "one average point's regularizer
+/// against one hair pixel's image error", whatever the number of points: the guide stage (2,000
+/// guides) and the child stage (50,000 children, 25 times the points) weigh their regularizers
+/// alike. Without it, on the paper curly capture the child stage's regularizers were 100 times its
+/// image terms and straightened the curls (undirected F1 at 2 mm/20° 47.9 → 41.9).
+pub fn regularizer_factor(targets: &DrTargets, num_points: usize) -> f32 {
+    let nv = targets.views.len().max(1);
+    let area: f64 =
+        targets.views.iter().map(|v| v.mask.iter().map(|&m| m as f64).sum::<f64>()).sum::<f64>() / nv as f64;
+    (area / num_points.max(1) as f64) as f32
 }
 
 impl Evaluator {
@@ -91,6 +108,7 @@ impl Evaluator {
             render_pts: vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }],
             g_render: vec![Vec3::ZERO; n_render],
             scale: median_segment_length(x, offsets),
+            reg_factor: regularizer_factor(targets, x.len()),
             settings: RasterSettings {
                 width: Width::World(opts.width_m),
                 shape: SegmentShape::Quad,
@@ -155,7 +173,10 @@ impl Evaluator {
             }
             None => g_x.copy_from_slice(&self.g_render),
         }
-        loss += regularizers(x, offsets, self.scale, &opts.weights, g_x);
+        let w = &opts.weights;
+        let f = self.reg_factor;
+        let reg_w = LossWeights { curvature: w.curvature * f, length: w.length * f, ..*w };
+        loss += regularizers(x, offsets, self.scale, &reg_w, g_x);
         Ok(loss)
     }
 }
@@ -411,37 +432,117 @@ pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance:
     StrandSet::new(out, strands.counts().to_vec()).unwrap_or_else(|_| strands.clone())
 }
 
-/// Resamples a polyline in place to the same number of points with (nearly) equal segments: equal
-/// arc-length spacing, repeated, since at a sharp bend a chord is shorter than the arc it spans and
-/// each pass cuts the bends that the previous one left.
+/// Resamples a polyline in place to the same number of points with (nearly) equal segments. The
+/// new points all lie on the input polyline: equal arc-length spacing first, then (since at a bend
+/// a chord is shorter than the arc it spans) a few passes that move each point's arc-length
+/// parameter so that the chords even out. Resampling the resampled polyline instead cuts the corners
+/// anew in every pass and shrank tight curls toward their axis: on the paper curly capture that
+/// alone lowered undirected F1 at 2 mm/20° from 47.9 to 41.5.
 fn resample_even(s: &mut [Vec3]) {
-    for _ in 0..10 {
-        resample_even_once(s);
-    }
-}
-
-/// One pass of [`resample_even`]: the same number of points, equally spaced by arc length.
-fn resample_even_once(s: &mut [Vec3]) {
     let n = s.len();
     if n < 3 {
         return;
     }
-    let total: f32 = s.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+    let src = s.to_vec();
+    let mut cum = Vec::with_capacity(n);
+    cum.push(0.0f32);
+    for w in src.windows(2) {
+        cum.push(cum[cum.len() - 1] + (w[1] - w[0]).length());
+    }
+    let total = cum[n - 1];
     if total <= 0.0 {
         return;
     }
-    let src: Vec<Vec3> = s.to_vec();
-    let step = total / (n - 1) as f32;
-    let (mut k, mut acc) = (0usize, 0.0f32);
-    for (i, p) in s.iter_mut().enumerate().skip(1).take(n - 2) {
-        let target = step * i as f32;
-        while k + 1 < n - 1 && acc + (src[k + 1] - src[k]).length() < target {
-            acc += (src[k + 1] - src[k]).length();
-            k += 1;
+    // The point at arc length `t` of the input polyline.
+    let at = |t: f32| -> Vec3 {
+        let k = cum.partition_point(|&c| c <= t).clamp(1, n - 1) - 1;
+        let l = cum[k + 1] - cum[k];
+        let f = if l > 0.0 { ((t - cum[k]) / l).clamp(0.0, 1.0) } else { 0.0 };
+        src[k].lerp(src[k + 1], f)
+    };
+    let mut t: Vec<f32> = (0..n).map(|i| total * i as f32 / (n - 1) as f32).collect();
+    let mut chord = vec![0.0f32; n];
+    for _ in 0..10 {
+        for (p, &ti) in s.iter_mut().zip(&t) {
+            *p = at(ti);
         }
-        let l = (src[k + 1] - src[k]).length();
-        let t = if l > 0.0 { ((target - acc) / l).clamp(0.0, 1.0) } else { 0.0 };
-        *p = src[k].lerp(src[k + 1], t);
+        // Cumulative chord length at each point; the parameter is a monotone function of it.
+        let (mut lo, mut hi) = (f32::MAX, 0.0f32);
+        for i in 1..n {
+            let l = (s[i] - s[i - 1]).length();
+            (lo, hi) = (lo.min(l), hi.max(l));
+            chord[i] = chord[i - 1] + l;
+        }
+        if hi <= lo * 1.001 || chord[n - 1] <= 0.0 {
+            break;
+        }
+        let step = chord[n - 1] / (n - 1) as f32;
+        let old = t.clone();
+        let mut j = 0usize;
+        for (i, ti) in t.iter_mut().enumerate().take(n - 1).skip(1) {
+            let c = step * i as f32;
+            while j + 2 < n && chord[j + 1] < c {
+                j += 1;
+            }
+            let d = chord[j + 1] - chord[j];
+            let f = if d > 0.0 { ((c - chord[j]) / d).clamp(0.0, 1.0) } else { 0.0 };
+            *ti = old[j] + (old[j + 1] - old[j]) * f;
+        }
     }
+    for (p, &ti) in s.iter_mut().zip(&t) {
+        *p = at(ti);
+    }
+    s[0] = src[0];
     s[n - 1] = src[n - 1];
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A helix of radius 4 mm about the z axis (a tight curl), sampled unevenly: 3 mm and 1 mm
+    /// steps of arc length in turn.
+    fn uneven_helix() -> Vec<Vec3> {
+        let (r, pitch) = (0.004f32, 0.006f32);
+        let per_rad = (r * r + (pitch / std::f32::consts::TAU).powi(2)).sqrt(); // arc length per radian
+        let mut a = 0.0f32;
+        let mut pts = Vec::new();
+        for i in 0..120 {
+            pts.push(Vec3::new(r * a.cos(), r * a.sin(), pitch * a / std::f32::consts::TAU));
+            a += if i % 2 == 0 { 0.003 } else { 0.001 } / per_rad;
+        }
+        pts
+    }
+
+    #[test]
+    fn resample_even_evens_segments_without_shrinking_a_curl() {
+        let src = uneven_helix();
+        let mut s = src.clone();
+        resample_even(&mut s);
+        assert_eq!(s.len(), src.len());
+        assert_eq!(s[0], src[0]);
+        assert_eq!(*s.last().unwrap(), *src.last().unwrap());
+        let seg: Vec<f32> = s.windows(2).map(|w| (w[1] - w[0]).length()).collect();
+        let (lo, hi) = seg.iter().fold((f32::MAX, 0.0f32), |(a, b), &l| (a.min(l), b.max(l)));
+        assert!(hi / lo < 1.02, "segments from {lo} to {hi}");
+        // Every point lies on the input polyline (the curl is not cut anew in every pass), so the
+        // strand keeps its length but for the corners its new chords cut (98.2% here); repeated
+        // resampling of the resampled polyline kept 96.5% of it.
+        let on_input = |p: Vec3| {
+            src.windows(2)
+                .map(|w| {
+                    let v = w[1] - w[0];
+                    let f = ((p - w[0]).dot(v) / v.length_squared()).clamp(0.0, 1.0);
+                    (w[0] + v * f - p).length()
+                })
+                .fold(f32::MAX, f32::min)
+        };
+        for (i, p) in s.iter().enumerate() {
+            let d = on_input(*p);
+            assert!(d < 1e-6, "point {i} is {:.4} mm off the input polyline", d * 1e3);
+        }
+        let length = |q: &[Vec3]| q.windows(2).map(|w| (w[1] - w[0]).length()).sum::<f32>();
+        let ratio = length(&s) / length(&src);
+        assert!(ratio > 0.975, "the resampled curl has {:.1}% of the input's length", ratio * 100.0);
+    }
 }
