@@ -71,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "max_turn_deg" => gp.max_turn = f.to_radians(),
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
+            "min_guide_fraction" => gp.min_guide_fraction = f,
             "gt_every" => gt_every = (f as usize).max(1),
             _ => return Err(format!("unknown key {k}").into()),
         }

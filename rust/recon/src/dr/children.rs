@@ -35,11 +35,15 @@ pub struct ChildMap {
 }
 
 impl ChildMap {
-    /// Builds the map so that `forward(guides)` gives `children` back.
-    pub fn new(guides: &StrandSet, children: &StrandSet, k: usize) -> Self {
-        let k = k.max(1).min(guides.num_strands().max(1));
-        let groots: Vec<Vec3> = guides.iter().map(|s| s[0]).collect();
-        let index = PointIndex::new(groots, vec![Vec3::Z; guides.num_strands()]);
+    /// Builds the map so that `forward(guides)` gives `children` back. Children blend their `k`
+    /// nearest guides among those at least `min_guide_fraction` of the median guide long, as growing chose them
+    /// ([`crate::grow::blend_candidates`]).
+    pub fn new(guides: &StrandSet, children: &StrandSet, k: usize, min_guide_fraction: f32) -> Self {
+        let eligible = crate::grow::blend_candidates(guides, min_guide_fraction);
+        let k = k.max(1).min(eligible.len().max(1));
+        let groots: Vec<Vec3> = eligible.iter().map(|&g| guides.strand(g)[0]).collect();
+        let index = PointIndex::new(groots, vec![Vec3::Z; eligible.len()]);
+        let eligible = &eligible;
         let nb: Vec<(u32, f32)> = children
             .iter()
             .collect::<Vec<_>>()
@@ -48,7 +52,7 @@ impl ChildMap {
                 let found = index.nearest(c[0], k);
                 let ws: f32 = found.iter().map(|&(_, d)| 1.0 / (d * d + 1e-8)).sum();
                 (0..k).map(move |j| match found.get(j) {
-                    Some(&(g, d)) => (g as u32, 1.0 / (d * d + 1e-8) / ws),
+                    Some(&(g, d)) => (eligible[g] as u32, 1.0 / (d * d + 1e-8) / ws),
                     None => (0, 0.0),
                 })
             })
@@ -192,7 +196,7 @@ mod tests {
             cc.push(len as u32);
         }
         let children = StrandSet::new(cp, cc).unwrap();
-        let mut map = ChildMap::new(&guides, &children, 3);
+        let mut map = ChildMap::new(&guides, &children, 3, 0.0);
         let mut out = vec![Vec3::ZERO; children.num_points()];
         map.forward(guides.points(), &mut out);
         for (a, b) in out.iter().zip(children.points()) {
@@ -210,5 +214,34 @@ mod tests {
         map.backward(&dc, &mut jt);
         let rhs: f32 = jt.iter().zip(&dg).map(|(a, b)| a.dot(*b)).sum();
         assert!((lhs - rhs).abs() < 1e-3 * lhs.abs().max(1.0), "{lhs} vs {rhs}");
+    }
+
+    #[test]
+    fn short_guides_move_no_child() {
+        // Guide 1 is 1 cm long, the others 5 cm: at 0.3 of the median (1.5 cm) no child blends it,
+        // though its root is the nearest to every child.
+        let line = |x: f32, n: usize| (0..n).map(move |j| Vec3::new(x, 0.0, -0.01 * j as f32));
+        let mut gp: Vec<Vec3> = line(0.0, 6).collect();
+        gp.extend(line(0.01, 2));
+        gp.extend(line(0.02, 6));
+        let guides = StrandSet::new(gp, vec![6, 2, 6]).unwrap();
+        let cp: Vec<Vec3> = line(0.0101, 5).chain(line(0.0099, 4)).collect();
+        let children = StrandSet::new(cp, vec![5, 4]).unwrap();
+        let moved = |map: &mut ChildMap, g: usize| {
+            let mut pts = guides.points().to_vec();
+            let o = guides.offsets()[g];
+            for p in &mut pts[o + 1..guides.offsets()[g + 1]] {
+                *p += Vec3::X * 0.01;
+            }
+            let (mut a, mut b) = (vec![Vec3::ZERO; children.num_points()], vec![Vec3::ZERO; children.num_points()]);
+            map.forward(guides.points(), &mut a);
+            map.forward(&pts, &mut b);
+            a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f32, f32::max)
+        };
+        let mut with_short = ChildMap::new(&guides, &children, 2, 0.0);
+        assert!(moved(&mut with_short, 1) > 1e-3, "the short guide is a neighbour without the minimum");
+        let mut without = ChildMap::new(&guides, &children, 2, 0.3);
+        assert_eq!(moved(&mut without, 1), 0.0);
+        assert!(moved(&mut without, 0) > 1e-3 && moved(&mut without, 2) > 1e-3);
     }
 }

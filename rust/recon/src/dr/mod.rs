@@ -227,6 +227,9 @@ pub struct DrOptions {
     pub uniform_adam: bool,
     /// Guides per child in the guide stage's child map (the pipeline sets it to `GrowParams::k`).
     pub child_k: usize,
+    /// Guides shorter than this fraction of the median guide take no part in the child map (the
+    /// pipeline sets it to `GrowParams::min_guide_fraction`).
+    pub child_min_guide_fraction: f32,
     /// Points are kept at least this far outside the head, metres.
     pub head_clearance: f32,
     /// Points are pushed out of the head every this many steps (and at the end).
@@ -256,6 +259,7 @@ impl Default for DrOptions {
             guide_opt: true,
             uniform_adam: true,
             child_k: 2,
+            child_min_guide_fraction: 0.3,
             head_clearance: 0.001,
             project_every: 10,
             equalize_at_end: true,
