@@ -387,9 +387,7 @@ pub fn interpolate_children(
     if guides.is_empty() {
         return Ok(StrandSet::empty());
     }
-    let eligible = blend_candidates(guides, params.min_guide_fraction);
-    let groots: Vec<Vec3> = eligible.iter().map(|&g| guides.strand(g)[0]).collect();
-    let index = PointIndex::new(groots.clone(), vec![Vec3::Z; groots.len()]);
+    let blend = GuideBlend::new(guides, params.min_guide_fraction);
     let mut points = Vec::new();
     let mut counts = Vec::new();
     let chunk = 4096;
@@ -400,12 +398,7 @@ pub fn interpolate_children(
             .par_iter()
             .map(|&i| {
                 let root = roots.positions[i];
-                let nb = index.nearest(root, params.k);
-                let mut w: Vec<(usize, f32)> = nb.iter().map(|&(g, d)| (eligible[g], 1.0 / (d * d + 1e-8))).collect();
-                let ws: f32 = w.iter().map(|x| x.1).sum();
-                for x in &mut w {
-                    x.1 /= ws;
-                }
+                let w = blend.weights(root, params.k);
                 let len: f32 = w.iter().map(|&(g, wt)| guides.strand(g).len() as f32 * wt).sum();
                 let n = (len.round() as usize).max(2);
                 let mut pts = Vec::with_capacity(n);
@@ -443,18 +436,44 @@ pub fn interpolate_children(
     Ok(StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty()))
 }
 
-/// The guides that children may blend: those at least `fraction` of the median guide length long
-/// (every guide when none is).
-pub fn blend_candidates(guides: &StrandSet, fraction: f32) -> Vec<usize> {
-    let lengths: Vec<f32> = (0..guides.num_strands()).map(|g| guides.strand_length(g)).collect();
-    let mut sorted = lengths.clone();
-    sorted.sort_by(f32::total_cmp);
-    let min_length = sorted.get(sorted.len() / 2).map_or(0.0, |m| m * fraction);
-    let long: Vec<usize> = (0..guides.num_strands()).filter(|&g| lengths[g] >= min_length).collect();
-    if long.is_empty() {
-        (0..guides.num_strands()).collect()
-    } else {
-        long
+/// Which guides a child blends, and how much: its `k` nearest guide roots among the guides at least
+/// `fraction` of the median guide length long (every guide when none is), weights `1/d²` summing to
+/// one. Shared by [`interpolate_children`] and the DR's child map, so that both pick the same guides.
+#[derive(Debug)]
+pub struct GuideBlend {
+    eligible: Vec<usize>,
+    index: PointIndex,
+}
+
+impl GuideBlend {
+    pub fn new(guides: &StrandSet, fraction: f32) -> Self {
+        let lengths: Vec<f32> = (0..guides.num_strands()).map(|g| guides.strand_length(g)).collect();
+        let mut sorted = lengths.clone();
+        sorted.sort_by(f32::total_cmp);
+        let min_length = sorted.get(sorted.len() / 2).map_or(0.0, |m| m * fraction);
+        let mut eligible: Vec<usize> = (0..guides.num_strands()).filter(|&g| lengths[g] >= min_length).collect();
+        if eligible.is_empty() {
+            eligible = (0..guides.num_strands()).collect();
+        }
+        let roots: Vec<Vec3> = eligible.iter().map(|&g| guides.strand(g)[0]).collect();
+        let index = PointIndex::new(roots, vec![Vec3::Z; eligible.len()]);
+        Self { eligible, index }
+    }
+
+    /// How many guides a child can blend.
+    pub fn len(&self) -> usize {
+        self.eligible.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.eligible.is_empty()
+    }
+
+    /// (guide index, weight) of the `k` guides a child rooted at `root` blends, nearest first.
+    pub fn weights(&self, root: Vec3, k: usize) -> Vec<(usize, f32)> {
+        let found = self.index.nearest(root, k);
+        let ws: f32 = found.iter().map(|&(_, d)| 1.0 / (d * d + 1e-8)).sum();
+        found.iter().map(|&(g, d)| (self.eligible[g], 1.0 / (d * d + 1e-8) / ws)).collect()
     }
 }
 

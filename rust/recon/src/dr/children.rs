@@ -15,7 +15,7 @@ use glam::Vec3;
 use hairrecon_core::StrandSet;
 use rayon::prelude::*;
 
-use crate::metrics::PointIndex;
+use crate::grow::GuideBlend;
 
 /// Chunks of children summed separately in [`ChildMap::backward`] (a constant, so that the sum order
 /// does not depend on the thread count).
@@ -37,24 +37,17 @@ pub struct ChildMap {
 impl ChildMap {
     /// Builds the map so that `forward(guides)` gives `children` back. Children blend their `k`
     /// nearest guides among those at least `min_guide_fraction` of the median guide long, as growing chose them
-    /// ([`crate::grow::blend_candidates`]).
+    /// ([`GuideBlend`]).
     pub fn new(guides: &StrandSet, children: &StrandSet, k: usize, min_guide_fraction: f32) -> Self {
-        let eligible = crate::grow::blend_candidates(guides, min_guide_fraction);
-        let k = k.max(1).min(eligible.len().max(1));
-        let groots: Vec<Vec3> = eligible.iter().map(|&g| guides.strand(g)[0]).collect();
-        let index = PointIndex::new(groots, vec![Vec3::Z; eligible.len()]);
-        let eligible = &eligible;
+        let blend = GuideBlend::new(guides, min_guide_fraction);
+        let k = k.max(1).min(blend.len().max(1));
         let nb: Vec<(u32, f32)> = children
             .iter()
             .collect::<Vec<_>>()
             .par_iter()
             .flat_map_iter(|c| {
-                let found = index.nearest(c[0], k);
-                let ws: f32 = found.iter().map(|&(_, d)| 1.0 / (d * d + 1e-8)).sum();
-                (0..k).map(move |j| match found.get(j) {
-                    Some(&(g, d)) => (eligible[g] as u32, 1.0 / (d * d + 1e-8) / ws),
-                    None => (0, 0.0),
-                })
+                let w = blend.weights(c[0], k);
+                (0..k).map(move |j| w.get(j).map_or((0, 0.0), |&(g, wt)| (g as u32, wt)))
             })
             .collect();
         let mut map = Self {
