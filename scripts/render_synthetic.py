@@ -51,6 +51,8 @@ PRESETS = {
     # strands only matter to make_benchmark.py (it asks synth-hair for that many); views, height, samples here.
     "test": dict(strands=2000, views=16, height=256, samples=32),
     "paper": dict(strands=50000, views=58, height=512, samples=32),
+    # The colour study (issue 6: wavy in six colours): the paper's hair at about 0.3 of its render cost.
+    "colors": dict(strands=50000, views=30, height=384, samples=32),
 }
 
 # --fusion auto fuses the photographs' own depth when the hair pixels of the masks have at least this
@@ -78,8 +80,10 @@ def parse_args(argv=None):
     p.add_argument("out", type=Path, help="capture folder to write (created; existing files are replaced)")
     p.add_argument("--scalp", type=Path, help="scalp mesh PLY to copy into the capture as scalp.ply")
     p.add_argument("--preset", choices=sorted(PRESETS), default="test")
-    p.add_argument("--views", type=int, help="number of cameras (preset: test 16, paper 58)")
-    p.add_argument("--height", type=int, help="image height in pixels, width = 2/3 of it (test 256, paper 512)")
+    p.add_argument("--views", type=int, help="number of cameras (preset: test 16, paper 58, colors 30)")
+    p.add_argument(
+        "--height", type=int, help="image height in pixels, width = 2/3 of it (test 256, paper 512, colors 384)"
+    )
     p.add_argument("--samples", type=int, help="Cycles samples per pixel (test 16, paper 32)")
     p.add_argument("--color", choices=sorted(COLORS), default="brown", help="hair colour")
     p.add_argument("--seed", type=int, default=0, help="Cycles seed and colour randomness")

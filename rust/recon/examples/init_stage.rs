@@ -16,7 +16,7 @@ use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
 use hairrecon_core::metric::{evaluate, MetricOptions};
 use hairrecon_core::Bvh;
-use hairrecon_recon::grow::{grow_guides, grow_one, interpolate_children, GrowParams, Stop};
+use hairrecon_recon::grow::{grow_guides, grow_one, interpolate_children, smooth_guides, GrowParams, Stop};
 use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
 use hairrecon_recon::metrics::PointIndex;
 use hairrecon_recon::pipeline::load_points;
@@ -72,6 +72,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
             "min_guide_fraction" => gp.min_guide_fraction = f,
+            "smooth_sigma" => gp.smooth_sigma = f,
+            "smooth_lo" => gp.smooth_angles_deg[0] = f,
+            "smooth_hi" => gp.smooth_angles_deg[1] = f,
             "gt_every" => gt_every = (f as usize).max(1),
             _ => return Err(format!("unknown key {k}").into()),
         }
@@ -103,6 +106,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let trace = (gp.trace_radius > 0.0).then(|| PointIndex::new(points.positions.clone(), points.directions.clone()));
     let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &groots, &gp, &Quiet)?;
+    let (guides, sstats) = smooth_guides(&guides, trace.as_ref(), Some(&flow), &gp);
+    println!("smooth: {sstats:?}");
     let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &Quiet)?;
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");

@@ -36,7 +36,7 @@ use thiserror::Error;
 
 use crate::direction::{global_directions, gravity_directions, DirectionParams};
 use crate::dr::{optimize as dr_optimize, DrError, DrOptions, DrTargets};
-use crate::grow::{grow_guides, interpolate_children, straight_strands, GrowParams};
+use crate::grow::{grow_guides, interpolate_children, smooth_guides, straight_strands, GrowParams};
 use crate::laplace::{solve_flow, LaplaceParams};
 use crate::metrics::{score_directions, score_points, PointIndex};
 use crate::orient2d::{
@@ -406,6 +406,8 @@ pub fn reconstruct(
             .then(|| PointIndex::new(directed.positions.clone(), directed.directions.clone()));
         let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &guide_roots, &opts.grow, progress)?;
         metrics.insert("grow_stats".into(), serde_json::to_value(gstats).unwrap_or_default());
+        let (guides, sstats) = smooth_guides(&guides, trace.as_ref(), Some(&flow), &opts.grow);
+        metrics.insert("smooth_stats".into(), serde_json::to_value(sstats).unwrap_or_default());
         let children = interpolate_children(&guides, &child_roots, Some(&flow), &opts.grow, progress)?;
         (guides, children)
     } else {
