@@ -284,7 +284,8 @@ def hair_material(bpy, a):
     else:
         hb.inputs["Color"].default_value = (*c["color"], 1.0)
     hb.inputs["Roughness"].default_value = 0.3
-    hb.inputs["Random Color"].default_value = 0.1
+    if "Random Color" in hb.inputs:  # melanin only: Blender 5.0 has no such socket with a direct colour
+        hb.inputs["Random Color"].default_value = 0.1
     links.new(hb.outputs[0], out.inputs["Surface"])
 
     geo = nodes.new("ShaderNodeNewGeometry")

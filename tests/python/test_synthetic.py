@@ -322,3 +322,23 @@ def test_capture_loads_with_the_rust_loader(test_capture, tmp_path):
     print("loader:", r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "")
     assert r.returncode == 0, r.stderr
     assert f"the capture loads: {n_views} views" in r.stderr
+
+
+@pytest.mark.parametrize("color", ["black", "blue", "brown", "gold", "gray", "red"])
+def test_every_hair_colour_builds_its_material(color):
+    """Each of the six colours of the colour study (issue 6) makes its Principled Hair BSDF: the
+    direct-colour ones (blue, gray, red) once failed on a melanin-only socket in Blender 5.0."""
+    from types import SimpleNamespace
+
+    import bpy
+    import render_synthetic as rs
+
+    spec = rs.COLORS[color]
+    m = rs.hair_material(bpy, SimpleNamespace(color=color))
+    (hb,) = [n for n in m.node_tree.nodes if n.type == "BSDF_HAIR_PRINCIPLED"]
+    assert hb.parametrization == spec["parametrization"]
+    if spec["parametrization"] == "MELANIN":
+        assert hb.inputs["Melanin"].default_value == pytest.approx(spec["melanin"])
+    else:
+        assert tuple(hb.inputs["Color"].default_value)[:3] == pytest.approx(spec["color"])
+    bpy.data.materials.remove(m)
