@@ -10,9 +10,12 @@
 //! 3 mm/30°.
 //!
 //! Matching uses a kd-tree (kiddo's `ImmutableKdTree`) over each set: one nearest-neighbour query
-//! settles most points, and a radius query is made only when the nearest point fails the angle test
-//! (see [`OrientedPoints::match_mask`]); along strands, the neighbours of the previous match are
-//! tried first (see [`OrientedPoints::match_counts`]); points are processed in parallel with rayon.
+//! settles most points, and a radius search is made only when the nearest point fails the angle test
+//! (see [`OrientedPoints::match_counts`]). That search runs in a grid whose blocks hold their points
+//! sorted by tangent into the cells of a cube map of the sphere: a cell whose every direction lies
+//! farther than the angle threshold from the query's tangent (and, undirected, from its reverse) is
+//! skipped. Along strands, the neighbours of the previous match are tried first; points are processed
+//! in parallel with rayon.
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -71,6 +74,230 @@ pub struct MetricReport {
     pub undirected: Vec<Score>,
 }
 
+/// Cells per cube-face side of the direction cells: 6 × 4 × 4 = 96 cells of at most 16.5° radius.
+const BIN_SIDE: usize = 4;
+const N_BINS: usize = 6 * BIN_SIDE * BIN_SIDE;
+
+/// The cube-map cell of a non-zero direction: face (±x, ±y, ±z), then the cell on that face.
+fn dir_bin(t: Vec3) -> usize {
+    let a = t.abs();
+    let (face, u, v, m) = if a.x >= a.y && a.x >= a.z {
+        (usize::from(t.x < 0.0), t.y, t.z, a.x)
+    } else if a.y >= a.z {
+        (2 + usize::from(t.y < 0.0), t.x, t.z, a.y)
+    } else {
+        (4 + usize::from(t.z < 0.0), t.x, t.y, a.z)
+    };
+    // Equal-angle cells: the face coordinate is the angle atan(w / m) ∈ [-45°, 45°].
+    let quarter = std::f32::consts::FRAC_PI_4;
+    let cell = |w: f32| ((((w / m).atan() / quarter + 1.0) * 0.5 * BIN_SIDE as f32) as usize).min(BIN_SIDE - 1);
+    (face * BIN_SIDE + cell(u)) * BIN_SIDE + cell(v)
+}
+
+/// The direction of face angles (u, v) ∈ [-1, 1]² (in units of 45°) on cube face `face` (the
+/// inverse of [`dir_bin`]).
+fn face_dir(face: usize, u: f32, v: f32) -> Vec3 {
+    let s = if face % 2 == 0 { 1.0 } else { -1.0 };
+    let quarter = std::f32::consts::FRAC_PI_4;
+    let (u, v) = ((u * quarter).tan(), (v * quarter).tan());
+    match face / 2 {
+        0 => Vec3::new(s, u, v),
+        1 => Vec3::new(u, s, v),
+        _ => Vec3::new(u, v, s),
+    }
+    .normalize()
+}
+
+/// Centre direction and angular radius of every direction cell.
+///
+/// Each cell is a convex spherical quadrilateral; its radius is the largest angle from its centre
+/// to a corner (a spherical cap under 90° is convex, so the corners bound the cell). A tangent
+/// within angle θ of the query's lies in a cell whose centre is within θ + radius of it.
+fn dir_cells() -> ([Vec3; N_BINS], [f32; N_BINS]) {
+    let mut centres = [Vec3::ZERO; N_BINS];
+    let mut radii = [0.0f32; N_BINS];
+    let step = 2.0 / BIN_SIDE as f32;
+    for face in 0..6 {
+        for i in 0..BIN_SIDE {
+            for j in 0..BIN_SIDE {
+                let b = (face * BIN_SIDE + i) * BIN_SIDE + j;
+                let (u0, v0) = (-1.0 + step * i as f32, -1.0 + step * j as f32);
+                let c = face_dir(face, u0 + 0.5 * step, v0 + 0.5 * step);
+                let corners = [(u0, v0), (u0 + step, v0), (u0, v0 + step), (u0 + step, v0 + step)];
+                let r = corners.iter().map(|&(u, v)| face_dir(face, u, v).dot(c).clamp(-1.0, 1.0).acos());
+                centres[b] = c;
+                // A margin for rounding at cell borders.
+                radii[b] = r.fold(0.0, f32::max) + 1e-3;
+            }
+        }
+    }
+    (centres, radii)
+}
+
+/// A run of points of one block that share a direction cell.
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    bin: u32,
+    start: u32,
+    end: u32,
+}
+
+/// One set's points for radius searches with an angle test: sorted by the block of a regular grid
+/// that holds them, and within a block by direction cell, so that a search scans the blocks near
+/// the query and, in each, only the runs whose cell can pass the angle test.
+#[derive(Debug)]
+struct SearchGrid {
+    centres: [Vec3; N_BINS],
+    radii: [f32; N_BINS],
+    origin: Vec3,
+    block: f32,
+    dims: [usize; 3],
+    /// Per block, the index of its first run (one more entry than blocks).
+    first_run: Vec<u32>,
+    runs: Vec<Run>,
+    pts: Vec<Vec3>,
+    tans: Vec<Vec3>,
+}
+
+impl SearchGrid {
+    /// Blocks of side `block_min`, larger when the grid would pass 2^24 blocks.
+    fn new(points: &[Vec3], tangents: &[Vec3], block_min: f32) -> Self {
+        let (centres, radii) = dir_cells();
+        let keep = |t: Vec3| t != Vec3::ZERO && t.is_finite();
+        let (lo, hi) = points
+            .iter()
+            .zip(tangents)
+            .filter(|(_, &t)| keep(t))
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), (&p, _)| (lo.min(p), hi.max(p)));
+        let empty = || Self {
+            centres,
+            radii,
+            origin: Vec3::ZERO,
+            block: 1.0,
+            dims: [0; 3],
+            first_run: vec![0],
+            runs: Vec::new(),
+            pts: Vec::new(),
+            tans: Vec::new(),
+        };
+        if !(lo.is_finite() && hi.is_finite() && block_min > 0.0) {
+            return empty();
+        }
+        let size = (hi - lo).max(Vec3::splat(1e-6));
+        let block = block_min.max((size.x * size.y * size.z / (1u32 << 24) as f32).cbrt());
+        let dims = (size / block).floor().to_array().map(|d| d as usize + 1);
+        let block_of = |p: Vec3| {
+            let c = ((p - lo) / block).floor().to_array();
+            let [i, j, l] = [0, 1, 2].map(|a| (c[a].max(0.0) as usize).min(dims[a] - 1));
+            (i * dims[1] + j) * dims[2] + l
+        };
+        let mut keys: Vec<(u64, u32)> = (0..points.len())
+            .into_par_iter()
+            .filter(|&k| keep(tangents[k]))
+            .map(|k| ((block_of(points[k]) * N_BINS + dir_bin(tangents[k])) as u64, k as u32))
+            .collect();
+        keys.par_sort_unstable();
+        let n_blocks = dims[0] * dims[1] * dims[2];
+        let mut first_run = vec![0u32; n_blocks + 1];
+        let mut runs: Vec<Run> = Vec::new();
+        let mut prev = u64::MAX;
+        for (pos, &(key, _)) in keys.iter().enumerate() {
+            if key != prev {
+                let blk = key as usize / N_BINS;
+                // Blocks up to this one start at this run.
+                let from = if prev == u64::MAX { 0 } else { prev as usize / N_BINS + 1 };
+                for f in &mut first_run[from..=blk] {
+                    *f = runs.len() as u32;
+                }
+                if let Some(r) = runs.last_mut() {
+                    r.end = pos as u32;
+                }
+                runs.push(Run { bin: (key as usize % N_BINS) as u32, start: pos as u32, end: pos as u32 });
+                prev = key;
+            }
+        }
+        if let Some(r) = runs.last_mut() {
+            r.end = keys.len() as u32;
+        }
+        let from = if prev == u64::MAX { 0 } else { prev as usize / N_BINS + 1 };
+        for f in &mut first_run[from..] {
+            *f = runs.len() as u32;
+        }
+        let pts = keys.iter().map(|&(_, k)| points[k as usize]).collect();
+        let tans = keys.iter().map(|&(_, k)| tangents[k as usize]).collect();
+        Self { centres, radii, origin: lo, block, dims, first_run, runs, pts, tans }
+    }
+
+    /// Per threshold and direction cell, cos(θ + cell radius): below it the cell holds no match.
+    fn cell_limits(&self, thresholds: &[Threshold]) -> Vec<[f32; N_BINS]> {
+        let pi = std::f32::consts::PI;
+        thresholds
+            .iter()
+            .map(|th| std::array::from_fn(|b| (th.angle_deg.to_radians() + self.radii[b]).min(pi).cos()))
+            .collect()
+    }
+
+    /// Whether some point within distance² `d2` of `p` has a tangent with cosine above `cos` to `t`
+    /// (looked for when `want.0`) or above `cos` in absolute value (when `want.1`); returns the
+    /// `(directed, undirected)` findings. `cb[b]` is the cosine between `t` and the centre of cell
+    /// `b`, `cos_lim[b]` cos(θ + radius of cell b).
+    #[allow(clippy::too_many_arguments)]
+    fn search(
+        &self,
+        p: Vec3,
+        t: Vec3,
+        d2: f32,
+        cos: f32,
+        cb: &[f32; N_BINS],
+        cos_lim: &[f32; N_BINS],
+        want: (bool, bool),
+    ) -> (bool, bool) {
+        if self.runs.is_empty() {
+            return (false, false);
+        }
+        // The cells that may hold a directed match, and those that may hold an undirected one.
+        let (mut same, mut either) = (0u128, 0u128);
+        for b in 0..N_BINS {
+            let (s, o) = (cb[b] >= cos_lim[b], -cb[b] >= cos_lim[b]);
+            same |= (s as u128) << b;
+            either |= ((s || o) as u128) << b;
+        }
+        let (mut dir, mut und) = (!want.0, !want.1);
+        let d = d2.sqrt();
+        let lo = ((p - Vec3::splat(d) - self.origin) / self.block).floor();
+        let hi = ((p + Vec3::splat(d) - self.origin) / self.block).floor();
+        let top = Vec3::new(self.dims[0] as f32, self.dims[1] as f32, self.dims[2] as f32) - 1.0;
+        if hi.cmplt(Vec3::ZERO).any() || lo.cmpgt(top).any() || !(lo.is_finite() && hi.is_finite()) {
+            return (false, false);
+        }
+        let (lo, hi) = (lo.max(Vec3::ZERO), hi.min(top));
+        for i in lo.x as usize..=hi.x as usize {
+            for j in lo.y as usize..=hi.y as usize {
+                let row = (i * self.dims[1] + j) * self.dims[2];
+                let (r0, r1) = (self.first_run[row + lo.z as usize], self.first_run[row + hi.z as usize + 1]);
+                for run in &self.runs[r0 as usize..r1 as usize] {
+                    let mask = if dir { 0 } else { same } | if und { 0 } else { either };
+                    if (mask >> run.bin) & 1 == 0 {
+                        continue;
+                    }
+                    let (a, z) = (run.start as usize, run.end as usize);
+                    for (q, s) in self.pts[a..z].iter().zip(&self.tans[a..z]) {
+                        if q.distance_squared(p) <= d2 {
+                            let c = s.dot(t);
+                            dir |= c > cos;
+                            und |= c.abs() > cos;
+                        }
+                    }
+                    if dir && und {
+                        return want;
+                    }
+                }
+            }
+        }
+        (dir && want.0, und && want.1)
+    }
+}
+
 /// Points with unit tangents and a kd-tree over the points: one side of the comparison.
 #[derive(Debug)]
 pub struct OrientedPoints {
@@ -105,20 +332,27 @@ impl OrientedPoints {
     }
 
     /// For a query point and tangent, a bit mask: bit `i` is set when some point of this set
-    /// matches under threshold `i` in directed mode, bit `MAX_THRESHOLDS + i` in undirected mode.
-    /// `thresholds` must be sorted by distance and hold at most [`MAX_THRESHOLDS`] entries; `cos`
-    /// holds the cosines of their angles.
+    /// matches under threshold `i` in directed mode, bit `MAX_THRESHOLDS + i` in undirected mode;
+    /// and the index of the nearest point (`u32::MAX` when none was searched). `thresholds` must be
+    /// sorted by distance and hold at most [`MAX_THRESHOLDS`] entries; `cos` holds the cosines of
+    /// their angles. With `monotone` (thresholds growing in both distance and angle), a match at
+    /// one threshold is carried to the wider ones without a search.
     ///
     /// Exact, and cheap in the common case: one nearest-neighbour query settles every threshold
     /// closer than the nearest point (unmatched) and, when the nearest point passes the angle test,
     /// every other one (matched). Only a threshold the nearest point fails on angle needs a radius
-    /// query.
-    pub fn match_mask(&self, p: Vec3, t: Vec3, thresholds: &[Threshold], cos: &[f32]) -> u32 {
-        self.match_mask_nearest(p, t, thresholds, cos).0
-    }
-
-    /// [`Self::match_mask`] and the index of the nearest point (`u32::MAX` when none was searched).
-    fn match_mask_nearest(&self, p: Vec3, t: Vec3, thresholds: &[Threshold], cos: &[f32]) -> (u32, u32) {
+    /// search in `grid`, which scans only the direction cells that can pass.
+    #[allow(clippy::too_many_arguments)]
+    fn match_mask_nearest(
+        &self,
+        p: Vec3,
+        t: Vec3,
+        thresholds: &[Threshold],
+        cos: &[f32],
+        grid: &SearchGrid,
+        cos_lim: &[[f32; N_BINS]],
+        monotone: bool,
+    ) -> (u32, u32) {
         let n = thresholds.len();
         if self.points.is_empty() || t == Vec3::ZERO || n == 0 {
             return (0, u32::MAX);
@@ -134,23 +368,24 @@ impl OrientedPoints {
         let d0 = nearest.distance;
         let c0 = self.tangents[nearest.item as usize].dot(t);
         let mut mask = 0u32;
+        let (mut prev_dir, mut prev_und) = (false, false);
+        let mut cb: Option<[f32; N_BINS]> = None;
         for i in 0..n {
             let di2 = thresholds[i].dist * thresholds[i].dist;
             if d0 > di2 {
                 continue; // nothing within d_i at all
             }
-            let (mut dir, mut und) = (c0 > cos[i], c0.abs() > cos[i]);
+            let mut dir = c0 > cos[i] || (monotone && prev_dir);
+            let mut und = c0.abs() > cos[i] || (monotone && prev_und);
             if !(dir && und) {
-                // The nearest point fails the angle test: look at every point within d_i.
-                for nb in self.tree.within_unsorted::<SquaredEuclidean>(&q, di2) {
-                    let c = self.tangents[nb.item as usize].dot(t);
-                    dir |= c > cos[i];
-                    und |= c.abs() > cos[i];
-                    if dir && und {
-                        break;
-                    }
-                }
+                // The nearest point fails the angle test: look at every point within d_i whose
+                // direction cell can pass it.
+                let cb = cb.get_or_insert_with(|| std::array::from_fn(|b| grid.centres[b].dot(t)));
+                let (d, u) = grid.search(p, t, di2, cos[i], cb, &cos_lim[i], (!dir, !und));
+                dir |= d;
+                und |= u;
             }
+            (prev_dir, prev_und) = (dir, und);
             mask |= (dir as u32) << i | (und as u32) << (MAX_THRESHOLDS + i);
         }
         (mask, nearest.item as u32)
@@ -162,7 +397,7 @@ impl OrientedPoints {
     /// first tries the points next to the previous query's nearest point: when thresholds grow in
     /// both distance and angle, one of them matching the tightest threshold proves a match at every
     /// threshold, in both modes, without a tree search. Along well-reconstructed strands that settles
-    /// most points; the result is exactly that of [`Self::match_mask`] for every point.
+    /// most points; the result is exactly that of a search of every point.
     pub fn match_counts(&self, query: &OrientedPoints, thresholds: &[Threshold]) -> (Vec<u64>, Vec<u64>) {
         let cos: Vec<f32> = thresholds.iter().map(|t| t.angle_deg.to_radians().cos()).collect();
         let n = thresholds.len();
@@ -170,6 +405,10 @@ impl OrientedPoints {
         let monotone = thresholds.windows(2).all(|w| w[0].dist <= w[1].dist && w[0].angle_deg <= w[1].angle_deg);
         let (d1, c1) = (thresholds.first().map_or(0.0, |t| t.dist), cos.first().copied().unwrap_or(1.0));
         let last = self.points.len() as i64 - 1;
+        // Blocks the size of the tightest threshold: a search at distance d scans about
+        // (2d / block + 1)³ blocks, but only the runs of the direction cells that can pass.
+        let grid = SearchGrid::new(&self.points, &self.tangents, d1);
+        let lim = grid.cell_limits(thresholds);
         let idx: Vec<u32> = (0..query.points.len() as u32).collect();
         idx.par_chunks(4096)
             .fold(
@@ -190,7 +429,7 @@ impl OrientedPoints {
                             }
                         }
                         if m == 0 {
-                            let (mm, nearest) = self.match_mask_nearest(p, t, thresholds, &cos);
+                            let (mm, nearest) = self.match_mask_nearest(p, t, thresholds, &cos, &grid, &lim, monotone);
                             m = mm;
                             hint = nearest;
                         }
@@ -395,18 +634,91 @@ mod tests {
         let pred = make(0.004);
         let a = OrientedPoints::from_strands(&pred, 0.001).unwrap();
         let b = OrientedPoints::from_strands(&gt, 0.001).unwrap();
-        let cos: Vec<f32> = PAPER_THRESHOLDS.iter().map(|t| t.angle_deg.to_radians().cos()).collect();
-        let mut want = (vec![0u64; 3], vec![0u64; 3]);
-        for (&p, &t) in a.points.iter().zip(&a.tangents) {
-            let m = b.match_mask(p, t, &PAPER_THRESHOLDS, &cos);
-            for i in 0..3 {
-                want.0[i] += ((m >> i) & 1) as u64;
-                want.1[i] += ((m >> (MAX_THRESHOLDS + i)) & 1) as u64;
-            }
-        }
+        let want = brute_force_counts(&a, &b, &PAPER_THRESHOLDS);
         let got = b.match_counts(&a, &PAPER_THRESHOLDS);
         assert_eq!(got, want);
         assert!(want.0[0] > 0 && want.0[0] < a.len() as u64, "the case must mix matches and misses: {want:?}");
+    }
+
+    /// Per threshold, the points of `query` that some point of `set` matches, by comparing every pair.
+    fn brute_force_counts(query: &OrientedPoints, set: &OrientedPoints, ths: &[Threshold]) -> (Vec<u64>, Vec<u64>) {
+        let mut want = (vec![0u64; ths.len()], vec![0u64; ths.len()]);
+        for (&p, &t) in query.points.iter().zip(&query.tangents) {
+            for (i, th) in ths.iter().enumerate() {
+                let c = th.angle_deg.to_radians().cos();
+                let near =
+                    || set.points.iter().zip(&set.tangents).filter(|(q, _)| q.distance_squared(p) <= th.dist * th.dist);
+                want.0[i] += near().any(|(_, s)| s.dot(t) > c) as u64;
+                want.1[i] += near().any(|(_, s)| s.dot(t).abs() > c) as u64;
+            }
+        }
+        want
+    }
+
+    /// A small seeded generator of uniform numbers in [-0.5, 0.5).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32) / (1u64 << 24) as f32 - 0.5
+        }
+    }
+
+    fn random_unit(rnd: &mut impl FnMut() -> f32) -> Vec3 {
+        loop {
+            let v = Vec3::new(rnd(), rnd(), rnd());
+            if v.length_squared() > 0.01 && v.length_squared() < 0.25 {
+                return v.normalize();
+            }
+        }
+    }
+
+    #[test]
+    fn every_direction_lies_in_its_cell() {
+        let (centres, radii) = dir_cells();
+        let mut rnd = uniform(7);
+        let mut axes = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z, Vec3::ONE.normalize()];
+        axes.extend((0..20000).map(|_| random_unit(&mut rnd)));
+        for t in axes {
+            let b = dir_bin(t);
+            let angle = centres[b].dot(t).clamp(-1.0, 1.0).acos();
+            assert!(angle <= radii[b], "{t} in cell {b}: {angle} > {}", radii[b]);
+        }
+        // The cells are small enough to prune: none wider than 16.5 degrees.
+        assert!(radii.iter().all(|&r| r < 16.5f32.to_radians()), "{radii:?}");
+    }
+
+    #[test]
+    fn counts_equal_brute_force_for_any_directions() {
+        // Points packed in a 1 cm cube with tangents in every direction: the direction cells must
+        // prune exactly the points a brute-force comparison rejects, in both modes.
+        let mut rnd = uniform(3);
+        let mut cloud = |n: usize| {
+            let p: Vec<Vec3> = (0..n).map(|_| Vec3::new(rnd(), rnd(), rnd()) * 0.01).collect();
+            let t: Vec<Vec3> = (0..n).map(|_| random_unit(&mut rnd)).collect();
+            (p, t)
+        };
+        let (pa, ta) = cloud(3000);
+        let (pb, tb) = cloud(2000);
+        let ths = [
+            Threshold { dist: 0.0005, angle_deg: 10.0 },
+            Threshold { dist: 0.001, angle_deg: 20.0 },
+            Threshold { dist: 0.0015, angle_deg: 30.0 },
+            Threshold { dist: 0.0015, angle_deg: 5.0 },
+        ];
+        let a = OrientedPoints::new(pa, ta);
+        let b = OrientedPoints::new(pb, tb);
+        let want = brute_force_counts(&a, &b, &ths);
+        let got = b.match_counts(&a, &ths);
+        assert_eq!(got, want);
+        // A case that tests something: partial matches, and more undirected than directed.
+        assert!(want.0[1] > 100 && want.0[1] < 2900 && want.1[1] > want.0[1], "{want:?}");
+        // Half the set moved 1 km away: the grid's blocks grow (the grid stays under 2^24 blocks).
+        let far: Vec<Vec3> =
+            b.points.iter().enumerate().map(|(k, &p)| if k % 2 == 0 { p + Vec3::X * 1000.0 } else { p }).collect();
+        let b = OrientedPoints::new(far, b.tangents.clone());
+        let grid = SearchGrid::new(&b.points, &b.tangents, ths[0].dist);
+        assert!(grid.block > 0.001, "block {}", grid.block);
+        assert_eq!(b.match_counts(&a, &ths), brute_force_counts(&a, &b, &ths));
     }
 
     #[test]
