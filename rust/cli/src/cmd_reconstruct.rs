@@ -226,14 +226,17 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
     let out = reconstruct(&capture, &a.out, &opts, &bars);
     bars.finish();
     let out = out?;
-    println!("stage times:");
+    let m = &out.metrics;
+    println!("stage times (and the process's peak memory at each stage's end):");
     let mut total = 0.0;
     for (s, t) in &out.stage_times {
-        println!("  {s:>10}  {t:8.2} s");
+        match m.get("peak_rss_mb").and_then(|p| p.get(s)).and_then(|v| v.as_f64()) {
+            Some(mb) => println!("  {s:>10}  {t:8.2} s  {:6.2} GB", mb / 1024.0),
+            None => println!("  {s:>10}  {t:8.2} s"),
+        }
         total += t;
     }
     println!("  {:>10}  {total:8.2} s", "total");
-    let m = &out.metrics;
     if let Some(st) = m.get("dr_stats") {
         println!(
             "DR: {} steps, {:.2} s per step, mean CG iterations {:.1}",

@@ -267,6 +267,25 @@ fn load_gt(capture: &Capture, raw: &Bvh) -> Result<Option<Gt>, ReconError> {
     Ok(Some(Gt { strands, index, surface }))
 }
 
+/// The process's peak resident memory so far in bytes (Linux `VmHWM`; `None` elsewhere).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Records the peak resident memory at the end of `stage` (before its scoring) in
+/// `metrics["peak_rss_mb"][stage]`: the peak is a running maximum, so the first stage whose value
+/// jumps is the one that needed the memory.
+fn note_peak_memory(metrics: &mut serde_json::Map<String, serde_json::Value>, stage: &str) {
+    let Some(b) = peak_rss_bytes() else { return };
+    let entry = metrics.entry("peak_rss_mb").or_insert_with(|| json!({}));
+    if let Some(m) = entry.as_object_mut() {
+        m.insert(stage.into(), json!((b as f64 / (1 << 20) as f64).round()));
+    }
+}
+
 fn strand_metric(pred: &StrandSet, gt: &StrandSet) -> serde_json::Value {
     let opts = MetricOptions::default();
     match evaluate(pred, gt, &opts) {
@@ -310,6 +329,7 @@ pub fn reconstruct(
     let t = Instant::now();
     let (maps, m) = orient2d_stage(capture, out_dir, opts, progress)?;
     times.push(("orient2d".into(), t.elapsed().as_secs_f64()));
+    note_peak_memory(&mut metrics, "orient2d");
     if let Some(m) = m {
         metrics.insert("orient2d".into(), m);
     }
@@ -337,6 +357,7 @@ pub fn reconstruct(
     let points = estimate(&views, &raw, &opts.mvs, progress)?;
     points.save_ply(&out_dir.join("points3d.ply"))?;
     times.push(("orient3d".into(), t.elapsed().as_secs_f64()));
+    note_peak_memory(&mut metrics, "orient3d");
     let gt = load_gt(capture, &raw)?;
     if let Some(g) = &gt {
         let s = score_points(
@@ -370,6 +391,7 @@ pub fn reconstruct(
     };
     directed.save_ply(&out_dir.join("points_directed.ply"))?;
     times.push(("direction".into(), t.elapsed().as_secs_f64()));
+    note_peak_memory(&mut metrics, "direction");
     if let Some(g) = &gt {
         let s = score_directions(
             &directed.positions,
@@ -421,6 +443,7 @@ pub fn reconstruct(
     let guides_path = out_dir.join("guides.hair");
     let strands_path = out_dir.join("strands.hair");
     times.push(("init".into(), t.elapsed().as_secs_f64()));
+    note_peak_memory(&mut metrics, "init");
     if !run_dr {
         write_strands(&guides_path, &guides)?;
         write_strands(&strands_path, &children)?;
@@ -468,6 +491,7 @@ pub fn reconstruct(
     write_strands(&guides_path, &r.guides)?;
     write_strands(&strands_path, &r.children)?;
     times.push(("dr".into(), t.elapsed().as_secs_f64()));
+    note_peak_memory(&mut metrics, "dr");
     let steps = r.loss_curve.len();
     let first_last = |stage| {
         let recs: Vec<_> = r.loss_curve.iter().filter(|x| x.stage == stage).collect();

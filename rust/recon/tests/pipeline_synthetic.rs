@@ -42,6 +42,14 @@ fn every_stage_meets_its_floor() {
     assert!(out.strands.as_ref().is_some_and(|p| p.is_file()));
     assert!(out.guides.as_ref().is_some_and(|p| p.is_file()));
     assert!(out_dir.join("metrics.json").is_file());
+    // The peak memory at each stage's end: a running maximum, so never falling; read (not zero);
+    // and higher after DR, which holds the children and their renderers, than after orient2d
+    // (measured 38 MB after orient2d, 460 MB after DR).
+    if cfg!(target_os = "linux") {
+        let peaks: Vec<f64> = out.stage_times.iter().map(|(s, _)| get(m, &["peak_rss_mb", s])).collect();
+        assert!(peaks.windows(2).all(|w| w[0] <= w[1]) && peaks[0] > 1.0, "{peaks:?}");
+        assert!(peaks[peaks.len() - 1] > 2.0 * peaks[0], "{peaks:?}");
+    }
     assert!(out_dir.join("points3d.ply").is_file());
     let o2 = get(m, &["orient2d", "mean_deg"]);
     let o2h = get(m, &["orient2d", "mean_confident_half_deg"]);
