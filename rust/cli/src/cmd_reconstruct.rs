@@ -227,7 +227,7 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
     bars.finish();
     let out = out?;
     let m = &out.metrics;
-    println!("stage times (and the process's peak memory at each stage's end):");
+    println!("stage times: (and the peak memory of the process at the end of each stage)");
     let mut total = 0.0;
     for (s, t) in &out.stage_times {
         match m.get("peak_rss_mb").and_then(|p| p.get(s)).and_then(|v| v.as_f64()) {
