@@ -198,30 +198,21 @@ impl SearchGrid {
             .collect();
         keys.par_sort_unstable();
         let n_blocks = dims[0] * dims[1] * dims[2];
-        let mut first_run = vec![0u32; n_blocks + 1];
+        // One run per distinct (block, cell) key, in key order; then, per block, the index of its
+        // first run as a prefix sum of the runs per block.
         let mut runs: Vec<Run> = Vec::new();
-        let mut prev = u64::MAX;
+        let mut first_run = vec![0u32; n_blocks + 1];
         for (pos, &(key, _)) in keys.iter().enumerate() {
-            if key != prev {
-                let blk = key as usize / N_BINS;
-                // Blocks up to this one start at this run.
-                let from = if prev == u64::MAX { 0 } else { prev as usize / N_BINS + 1 };
-                for f in &mut first_run[from..=blk] {
-                    *f = runs.len() as u32;
-                }
+            if pos == 0 || key != keys[pos - 1].0 {
                 if let Some(r) = runs.last_mut() {
                     r.end = pos as u32;
                 }
-                runs.push(Run { bin: (key as usize % N_BINS) as u32, start: pos as u32, end: pos as u32 });
-                prev = key;
+                runs.push(Run { bin: (key as usize % N_BINS) as u32, start: pos as u32, end: keys.len() as u32 });
+                first_run[key as usize / N_BINS + 1] += 1;
             }
         }
-        if let Some(r) = runs.last_mut() {
-            r.end = keys.len() as u32;
-        }
-        let from = if prev == u64::MAX { 0 } else { prev as usize / N_BINS + 1 };
-        for f in &mut first_run[from..] {
-            *f = runs.len() as u32;
+        for b in 0..n_blocks {
+            first_run[b + 1] += first_run[b];
         }
         let pts = keys.iter().map(|&(_, k)| points[k as usize]).collect();
         let tans = keys.iter().map(|&(_, k)| tangents[k as usize]).collect();
