@@ -12,6 +12,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use glam::Vec3;
+
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
 use hairrecon_core::metric::{evaluate, MetricOptions};
@@ -128,6 +130,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     for (k, h) in &hist {
         println!("  tips {k:>10} by z from -0.5 m: {h:?}");
+    }
+    // Where the guides start: roots whose voxel is not hair, or that the raw mesh's signed distance
+    // puts outside it (both stop or deflect a guide's first steps). `DEBUG_ROOTS=1` also prints
+    // every 200th root: S, normal, field, distances and the first segments of its guide.
+    let (mut no_hair, mut outside) = (0, 0);
+    for &p in &groots.positions {
+        no_hair += (flow.grid.voxel_of(p).map_or(0, |v| flow.label[v]) == 0) as usize;
+        outside += (flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(1.0) > 0.0) as usize;
+    }
+    println!("guide roots: {no_hair} in no hair voxel, {outside} outside the raw mesh, of {}", groots.len());
+    if std::env::var_os("DEBUG_ROOTS").is_some() {
+        for i in (0..groots.len()).step_by(200) {
+            let p = groots.positions[i];
+            let (pts, _) = grow_one(&flow, trace.as_ref(), p, groots.growth[i], &gp);
+            let field = flow.grid.trilinear(&flow.field, p).unwrap_or(Vec3::ZERO).normalize_or_zero();
+            let so = flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(f32::NAN);
+            let si = flow.grid.trilinear(&flow.sd_inner, p).unwrap_or(f32::NAN);
+            let segs: Vec<String> =
+                pts.windows(2).take(4).map(|w| format!("{:.2?}", (w[1] - w[0]).normalize())).collect();
+            println!(
+                "root {i}: S {:.2?} normal {:.2?} field {field:.2?} sd_outer {so:.4} sd_inner {si:.4} segments {}",
+                groots.growth[i],
+                groots.normals[i],
+                segs.join(" ")
+            );
+        }
     }
     println!("grow: {gstats:?} ({t_grow:.1} s)");
     write_strands(out.join("guides.hair"), &guides)?;
