@@ -7,7 +7,9 @@
 //! `cargo run --release -p hairrecon-recon --example init_stage -- CAPTURE DIR OUT [key=value ...]`
 //! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
 //! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
-//! ground-truth strand only, for speed).
+//! ground-truth strand only, for speed). Environment: `GT_VOLUME=1` prints how much of the ground
+//! truth lies in the hair volume and inside the raw mesh; `DEBUG_ROOTS=1` prints the start of every
+//! 200th guide.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -140,6 +142,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         outside += (flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(1.0) > 0.0) as usize;
     }
     println!("guide roots: {no_hair} in no hair voxel, {outside} outside the raw mesh, of {}", groots.len());
+    if let Some(g) = capture.gt_strands.as_ref().filter(|_| std::env::var_os("GT_VOLUME").is_some()) {
+        // How much of the ground truth the hair volume holds (every 37th point), by distance from
+        // the head: in no hair voxel, and outside the raw mesh by the flow's signed distance.
+        let gt = read_strands(g)?;
+        let (mut n, mut no_hair, mut out) = (0usize, 0usize, 0usize);
+        let mut by_depth = [[0usize; 2]; 6];
+        for &p in gt.points().iter().step_by(37) {
+            let o = flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(1.0) > 0.0;
+            let b = ((flow.grid.trilinear(&flow.sd_inner, p).unwrap_or(1.0) / 0.01).max(0.0) as usize).min(5);
+            n += 1;
+            no_hair += (flow.grid.voxel_of(p).map_or(0, |v| flow.label[v]) == 0) as usize;
+            out += o as usize;
+            by_depth[b][0] += 1;
+            by_depth[b][1] += o as usize;
+        }
+        println!("gt points: {n} sampled, {no_hair} in no hair voxel, {out} outside the raw mesh");
+        for (b, c) in by_depth.iter().enumerate() {
+            let share = 100.0 * c[1] as f64 / c[0].max(1) as f64;
+            println!("  {b}-{} cm from the head: {} points, {share:.1}% outside", b + 1, c[0]);
+        }
+    }
     if std::env::var_os("DEBUG_ROOTS").is_some() {
         for i in (0..groots.len()).step_by(200) {
             let p = groots.positions[i];
