@@ -8,8 +8,8 @@
 //! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
 //! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
 //! ground-truth strand only, for speed). Environment: `GT_VOLUME=1` prints how much of the ground
-//! truth lies in the hair volume and inside the raw mesh; `DEBUG_ROOTS=1` prints the start of every
-//! 200th guide.
+//! truth lies in the hair volume and inside the raw mesh; `START_ANGLES=1` how guides and ground truth
+//! leave the scalp; `DEBUG_ROOTS=1` prints the start of every 200th guide.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -25,7 +25,7 @@ use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
 use hairrecon_recon::metrics::PointIndex;
 use hairrecon_recon::pipeline::load_points;
 use hairrecon_recon::progress::Progress;
-use hairrecon_recon::roots::{sample_roots, Scalp};
+use hairrecon_recon::roots::{sample_roots, scalp_point, Scalp};
 
 struct Quiet;
 
@@ -162,6 +162,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let share = 100.0 * c[1] as f64 / c[0].max(1) as f64;
             println!("  {b}-{} cm from the head: {} points, {share:.1}% outside", b + 1, c[0]);
         }
+    }
+    if let Some(g) = capture.gt_strands.as_ref().filter(|_| std::env::var_os("START_ANGLES").is_some()) {
+        // How strands leave the scalp: the median angle between S(p_s) at the root and the chord
+        // from the root to the point 2 mm and 2 cm along the strand, guides against ground truth.
+        let gt = read_strands(g)?;
+        let chord_angles = |strands: &hairrecon_core::StrandSet, every: usize| -> [f32; 2] {
+            let mut a: [Vec<f32>; 2] = [Vec::new(), Vec::new()];
+            for s in strands.iter().step_by(every) {
+                let Some(sp) = scalp_point(&scalp, s[0], 0.002) else { continue };
+                let mut arc = 0.0;
+                let mut done = [false; 2];
+                for w in s.windows(2) {
+                    arc += w[0].distance(w[1]);
+                    for (k, at) in [0.002f32, 0.02].into_iter().enumerate() {
+                        if !done[k] && arc >= at - 1e-6 {
+                            done[k] = true;
+                            a[k].push(
+                                (w[1] - s[0]).normalize_or_zero().dot(sp.growth).clamp(-1.0, 1.0).acos().to_degrees(),
+                            );
+                        }
+                    }
+                }
+            }
+            a.map(|mut v| {
+                v.sort_by(f32::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(f32::NAN)
+            })
+        };
+        let [g2, g20] = chord_angles(&guides, 1);
+        let [t2, t20] = chord_angles(&gt, 10);
+        println!("start: median angle of the chord to 2 mm / 2 cm from S(p_s): guides {g2:.1}° / {g20:.1}°, ground truth {t2:.1}° / {t20:.1}°");
     }
     if std::env::var_os("DEBUG_ROOTS").is_some() {
         for i in (0..groots.len()).step_by(200) {
