@@ -136,23 +136,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Where the guides start: roots whose voxel is not hair, or that the raw mesh's signed distance
     // puts outside it (both stop or deflect a guide's first steps). `DEBUG_ROOTS=1` also prints
     // every 200th root: S, normal, field, distances and the first segments of its guide.
-    let (mut no_hair, mut outside) = (0, 0);
-    for &p in &groots.positions {
-        no_hair += (flow.grid.voxel_of(p).map_or(0, |v| flow.label[v]) == 0) as usize;
-        outside += (flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(1.0) > 0.0) as usize;
-    }
+    let not_hair = |p: Vec3| flow.grid.voxel_of(p).is_none_or(|v| flow.label[v] == 0);
+    let outside_raw = |p: Vec3| flow.grid.trilinear(&flow.sd_outer, p).is_none_or(|d| d > 0.0);
+    let no_hair = groots.positions.iter().filter(|&&p| not_hair(p)).count();
+    let outside = groots.positions.iter().filter(|&&p| outside_raw(p)).count();
     println!("guide roots: {no_hair} in no hair voxel, {outside} outside the raw mesh, of {}", groots.len());
-    if let Some(g) = capture.gt_strands.as_ref().filter(|_| std::env::var_os("GT_VOLUME").is_some()) {
+    let gt = capture.gt_strands.as_ref().map(read_strands).transpose()?;
+    if let Some(gt) = gt.as_ref().filter(|_| std::env::var_os("GT_VOLUME").is_some()) {
         // How much of the ground truth the hair volume holds (every 37th point), by distance from
         // the head: in no hair voxel, and outside the raw mesh by the flow's signed distance.
-        let gt = read_strands(g)?;
         let (mut n, mut no_hair, mut out) = (0usize, 0usize, 0usize);
         let mut by_depth = [[0usize; 2]; 6];
         for &p in gt.points().iter().step_by(37) {
-            let o = flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(1.0) > 0.0;
+            let o = outside_raw(p);
             let b = ((flow.grid.trilinear(&flow.sd_inner, p).unwrap_or(1.0) / 0.01).max(0.0) as usize).min(5);
             n += 1;
-            no_hair += (flow.grid.voxel_of(p).map_or(0, |v| flow.label[v]) == 0) as usize;
+            no_hair += not_hair(p) as usize;
             out += o as usize;
             by_depth[b][0] += 1;
             by_depth[b][1] += o as usize;
@@ -163,10 +162,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             println!("  {b}-{} cm from the head: {} points, {share:.1}% outside", b + 1, c[0]);
         }
     }
-    if let Some(g) = capture.gt_strands.as_ref().filter(|_| std::env::var_os("START_ANGLES").is_some()) {
+    if let Some(gt) = gt.as_ref().filter(|_| std::env::var_os("START_ANGLES").is_some()) {
         // How strands leave the scalp: the median angle between S(p_s) at the root and the chord
         // from the root to the point 2 mm and 2 cm along the strand, guides against ground truth.
-        let gt = read_strands(g)?;
         let chord_angles = |strands: &hairrecon_core::StrandSet, every: usize| -> [f32; 2] {
             let mut a: [Vec<f32>; 2] = [Vec::new(), Vec::new()];
             for s in strands.iter().step_by(every) {
@@ -191,7 +189,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
         };
         let [g2, g20] = chord_angles(&guides, 1);
-        let [t2, t20] = chord_angles(&gt, 10);
+        let [t2, t20] = chord_angles(gt, 10);
         println!("start: median angle of the chord to 2 mm / 2 cm from S(p_s): guides {g2:.1}° / {g20:.1}°, ground truth {t2:.1}° / {t20:.1}°");
     }
     if std::env::var_os("DEBUG_ROOTS").is_some() {
@@ -215,8 +213,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     write_strands(out.join("guides.hair"), &guides)?;
     flow.save(&out.join("flow.bin"))?;
     write_strands(out.join("strands.hair"), &children)?;
-    if let Some(g) = &capture.gt_strands {
-        let gt = read_strands(g)?;
+    if let Some(gt) = &gt {
         let gt = gt.select(&(0..gt.num_strands()).step_by(gt_every).collect::<Vec<_>>());
         let opts = MetricOptions::default();
         let t = Instant::now();
