@@ -39,6 +39,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         eprintln!("usage: oracle_points CAPTURE DIR OUT all|near_mesh|near_ours|gt_tangents|gt_signs");
         std::process::exit(2);
     }
+    const MODES: [&str; 5] = ["all", "near_mesh", "near_ours", "gt_tangents", "gt_signs"];
+    if !MODES.contains(&args[3].as_str()) {
+        return Err(format!("unknown mode {}; use one of {}", args[3], MODES.join(", ")).into());
+    }
     let capture = Capture::load(&args[0])?;
     let dir = PathBuf::from(&args[1]);
     let out = PathBuf::from(&args[2]);
@@ -59,7 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         "near_ours" => {
             let o = ours()?;
-            let index = PointIndex::new(o.positions.clone(), o.directions.clone());
+            let index = PointIndex::new(o.positions, o.directions);
             keep(&|p| index.nearest(p, 1).first().is_some_and(|&(_, d)| d <= 0.001))
         }
         mode @ ("gt_tangents" | "gt_signs") => {
@@ -83,7 +87,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .collect();
             o
         }
-        m => return Err(format!("unknown mode {m}").into()),
+        _ => unreachable!("modes are checked above"),
     };
     std::fs::create_dir_all(&out)?;
     result.save_ply(&out.join("points_directed.ply"))?;
