@@ -9,7 +9,9 @@
 //! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
 //! ground-truth strand only, for speed). Environment: `GT_VOLUME=1` prints how much of the ground
 //! truth lies in the hair volume and inside the raw mesh; `START_ANGLES=1` how guides and ground truth
-//! leave the scalp; `DEBUG_ROOTS=1` prints the start of every 200th guide.
+//! leave the scalp; `DEBUG_ROOTS=1` prints the start of every 200th guide; `GT_GUIDES=1` replaces
+//! the guides by the ground-truth strands rooted nearest their roots, to score the children's
+//! interpolation alone.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -112,6 +114,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &groots, &gp, &Quiet)?;
     let (guides, sstats) = smooth_guides(&guides, trace.as_ref(), Some(&flow), &gp);
     println!("smooth: {sstats:?}");
+    let gt = capture.gt_strands.as_ref().map(read_strands).transpose()?;
+    // `GT_GUIDES=1`: the guides replaced by the ground-truth strand rooted nearest each guide root,
+    // moved onto it, to measure what the children's interpolation alone loses.
+    let guides = match gt.as_ref().filter(|_| std::env::var_os("GT_GUIDES").is_some()) {
+        Some(gt) => {
+            let gt_roots: Vec<Vec3> = gt.iter().map(|s| s[0]).collect();
+            let index = PointIndex::new(gt_roots.clone(), vec![Vec3::Z; gt_roots.len()]);
+            let mut pts = Vec::new();
+            let mut counts = Vec::new();
+            for &r in &groots.positions {
+                let (g, _) = index.nearest(r, 1)[0];
+                let s = gt.strand(g);
+                pts.extend(s.iter().map(|&p| p - s[0] + r));
+                counts.push(s.len() as u32);
+            }
+            hairrecon_core::StrandSet::new(pts, counts)?
+        }
+        None => guides,
+    };
     let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &Quiet)?;
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
@@ -141,7 +162,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let no_hair = groots.positions.iter().filter(|&&p| not_hair(p)).count();
     let outside = groots.positions.iter().filter(|&&p| outside_raw(p)).count();
     println!("guide roots: {no_hair} in no hair voxel, {outside} outside the raw mesh, of {}", groots.len());
-    let gt = capture.gt_strands.as_ref().map(read_strands).transpose()?;
     if let Some(gt) = gt.as_ref().filter(|_| std::env::var_os("GT_VOLUME").is_some()) {
         // How much of the ground truth the hair volume holds (every 37th point), by distance from
         // the head: in no hair voxel, and outside the raw mesh by the flow's signed distance.

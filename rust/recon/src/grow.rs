@@ -119,7 +119,7 @@ impl Default for GrowParams {
             trace_pull: 1.5,
             max_turn: 40f32.to_radians(),
             min_guide_fraction: 0.3,
-            smooth_sigma: 0.004,
+            smooth_sigma: 0.02,
             smooth_angles_deg: [12.0, 14.5],
         }
     }
@@ -463,7 +463,11 @@ pub struct SmoothStats {
 /// coherence angle: straight 11.1°, wavy 18.0°, curly 17.9°. With the default thresholds 12°/14.5°
 /// (1246 / 337 / 417 straight guides smoothed fully / partly / not; curly 20 / 169 / 1811): straight
 /// 71.9 → 73.9 (39.5 → 44.0), curly 32.0 → 31.6; thresholds 13°/16°: straight 74.5, wavy 38.0 →
-/// 38.5, curly 31.1.
+/// 38.5, curly 31.1. Session 10, σ (default thresholds) 4 → 8 / 12 / 20 mm: straight 73.9 → 74.8 /
+/// 75.2 / **75.6**, curly 31.6 → 31.3 at 12 and 20 mm, wavy 38.3 → 38.2 at 12 mm; σ 20 mm with
+/// thresholds 14°/17° gave straight 76.2 but curly 29.4, σ 30 mm with 15°/18° straight 75.3. At
+/// full size (`children=50000`) σ 20 mm lifts straight from 81.8 to 83.7 (1 mm/10° 59.7 → 63.3,
+/// directed 79.4 → 81.3): the straight guides' wiggles are tracing noise over centimetres.
 pub fn smooth_guides(
     guides: &StrandSet,
     points: Option<&PointIndex>,
