@@ -14,9 +14,9 @@ not:
 | orient3d  | precision of the points at 2 mm / 20 deg         | 84.3 %   | >= 80   |
 | orient3d  | coverage of the visible hair surface             | 37.8 %   | >= 33   |
 | direction | points whose direction agrees with the GT        | 100.0 %  | >= 97   |
-| init      | strands: undirected F1 at 2 mm / 20 deg          | 56.6     | >= 55   |
-| init      | strands: directed F1 within 3 of undirected      | 3.2      | <= 4.0  |
-| init      | guides: undirected F1 at 2 mm / 20 deg           | 37.4     | >= 35   |
+| init      | strands: undirected F1 at 2 mm / 20 deg          | 57.7     | >= 55   |
+| init      | strands: directed F1 within 3 of undirected      | 3.3      | <= 4.0  |
+| init      | guides: undirected F1 at 2 mm / 20 deg           | 38.5     | >= 35   |
 
 Session 4 changed the direction solver (least squares over the graph), let guides trace the 3D points
 and limited a step's turn to 40 degrees: strands 51.3 -> 56.1, guides 30.2 -> 36.3 (tracing alone,
@@ -26,9 +26,6 @@ guides at least 0.3 of the median guide long: 54.3 undirected, 50.8 directed (ga
 capture, against +2.1 on the paper curly capture (50.7 -> 52.8) and -0.1 on paper straight, so the floors
 moved to 52 and 4.0. Session 7 smooths the guides along which the 3D points agree (straight hair):
 strands 54.3 -> 57.7 undirected, 50.8 -> 54.4 directed (gap 3.3), guides 36.3 -> 38.5; floors 55 and 35.
-Session 10 smooths those guides by a Gaussian of 20 mm instead of 4 mm: 57.7 -> 56.6 undirected, 54.4 ->
-53.4 directed, guides 38.5 -> 37.4 on this sparse capture, against 81.8 -> 83.7 on the paper straight
-capture (the floors stay).
 """
 
 from __future__ import annotations
