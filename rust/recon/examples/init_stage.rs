@@ -119,8 +119,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // moved onto it, to measure what the children's interpolation alone loses.
     let guides = match gt.as_ref().filter(|_| std::env::var_os("GT_GUIDES").is_some()) {
         Some(gt) => {
-            let gt_roots: Vec<Vec3> = gt.iter().map(|s| s[0]).collect();
-            let index = PointIndex::new(gt_roots.clone(), vec![Vec3::Z; gt_roots.len()]);
+            let index = PointIndex::new(gt.iter().map(|s| s[0]).collect(), vec![Vec3::Z; gt.num_strands()]);
             let mut pts = Vec::new();
             let mut counts = Vec::new();
             for &r in &groots.positions {
