@@ -78,6 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "max_length" => gp.max_length = f,
             "k" => gp.k = f as usize,
             "min_guide_fraction" => gp.min_guide_fraction = f,
+            "parting_deg" => gp.parting_deg = f,
             "smooth_sigma" => gp.smooth_sigma = f,
             "smooth_lo" => gp.smooth_angles_deg[0] = f,
             "smooth_hi" => gp.smooth_angles_deg[1] = f,

@@ -87,6 +87,12 @@ pub struct GrowParams {
     /// at 0.3 (recall 53.7 → 60.3; absolute minima of 2, 8, 15 cm gave 52.0, 52.6, 53.1), paper
     /// straight 79.9 → 79.8, the sparse test preset 56.2 → 54.3.
     pub min_guide_fraction: f32,
+    /// Partings: a child blends only the guides whose first [`PARTING_ARC`] leave the scalp within
+    /// this angle (degrees) of its nearest guide's (180: every guide). Two guides on either side of
+    /// a parting or a crown whorl point apart; the mean of their segment vectors nearly cancels, and
+    /// the child crumples at its root (segments 0.02 mm long for the first centimetres, which no
+    /// resampling evens out). Measured in [`GuideBlend`].
+    pub parting_deg: f32,
     /// Smoothing of straight guides: a guide is smoothed along its length (its segment vectors by a
     /// Gaussian of `smooth_sigma` metres, the root kept) when the directed points along it are
     /// coherent: their mean angle to their local mean direction (within `trace_radius`) is at most
@@ -119,7 +125,8 @@ impl Default for GrowParams {
             trace_pull: 1.5,
             max_turn: 40f32.to_radians(),
             min_guide_fraction: 0.3,
-            smooth_sigma: 0.004,
+            parting_deg: 90.0,
+            smooth_sigma: 0.02,
             smooth_angles_deg: [12.0, 14.5],
         }
     }
@@ -467,9 +474,10 @@ pub struct SmoothStats {
 /// 75.2 / **75.6**, curly 31.6 → 31.3 at 12 and 20 mm, wavy 38.3 → 38.2 at 12 mm; σ 20 mm with
 /// thresholds 14°/17° gave straight 76.2 but curly 29.4, σ 30 mm with 15°/18° straight 75.3. At
 /// full size (`children=50000`) σ 20 mm lifts straight from 81.8 to 83.7 (1 mm/10° 59.7 → 63.3,
-/// directed 79.4 → 81.3): the straight guides' wiggles are tracing noise over centimetres. Not the
-/// default yet: with σ 20 mm one strand of the DR test (`tests/pipeline_dr.rs`) ends with a
-/// max/min segment length ratio of 2.02 after DR's evening (to find and fix first).
+/// directed 79.4 → 81.3): the straight guides' wiggles are tracing noise over centimetres. The
+/// default since session 11, when the DR test's one uneven strand (`tests/pipeline_dr.rs`, a
+/// max/min segment ratio of 2.02) turned out to be a child blending two guides on either side of a
+/// parting, now prevented by [`GrowParams::parting_deg`].
 pub fn smooth_guides(
     guides: &StrandSet,
     points: Option<&PointIndex>,
@@ -527,7 +535,7 @@ pub fn interpolate_children(
     if guides.is_empty() {
         return Ok(StrandSet::empty());
     }
-    let blend = GuideBlend::new(guides, params.min_guide_fraction);
+    let blend = GuideBlend::new(guides, params.min_guide_fraction, params.parting_deg);
     let mut points = Vec::new();
     let mut counts = Vec::new();
     let chunk = 4096;
@@ -576,17 +584,25 @@ pub fn interpolate_children(
     Ok(StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty()))
 }
 
+/// Arc length over which a guide's leaving direction is taken for [`GrowParams::parting_deg`].
+pub const PARTING_ARC: f32 = 0.02;
+
 /// Which guides a child blends, and how much: its `k` nearest guide roots among the guides at least
-/// `fraction` of the median guide length long (every guide when none is), weights `1/d²` summing to
-/// one. Shared by [`interpolate_children`] and the DR's child map, so that both pick the same guides.
+/// `fraction` of the median guide length long (every guide when none is), less those that leave the
+/// scalp more than `parting_deg` away from the nearest one's direction (a parting between them),
+/// weights `1/d²` summing to one. Shared by [`interpolate_children`] and the DR's child map, so
+/// that both pick the same guides.
 #[derive(Debug)]
 pub struct GuideBlend {
     eligible: Vec<usize>,
     index: PointIndex,
+    /// Unit chord from each eligible guide's root over its first [`PARTING_ARC`].
+    leaving: Vec<Vec3>,
+    parting_cos: f32,
 }
 
 impl GuideBlend {
-    pub fn new(guides: &StrandSet, fraction: f32) -> Self {
+    pub fn new(guides: &StrandSet, fraction: f32, parting_deg: f32) -> Self {
         let lengths: Vec<f32> = (0..guides.num_strands()).map(|g| guides.strand_length(g)).collect();
         let mut sorted = lengths.clone();
         sorted.sort_by(f32::total_cmp);
@@ -596,8 +612,10 @@ impl GuideBlend {
             eligible = (0..guides.num_strands()).collect();
         }
         let roots: Vec<Vec3> = eligible.iter().map(|&g| guides.strand(g)[0]).collect();
+        let leaving = eligible.iter().map(|&g| leaving_direction(guides.strand(g), PARTING_ARC)).collect();
         let index = PointIndex::new(roots, vec![Vec3::Z; eligible.len()]);
-        Self { eligible, index }
+        let parting_cos = if parting_deg >= 180.0 { -2.0 } else { parting_deg.to_radians().cos() };
+        Self { eligible, index, leaving, parting_cos }
     }
 
     /// How many guides a child can blend.
@@ -609,12 +627,30 @@ impl GuideBlend {
         self.eligible.is_empty()
     }
 
-    /// (guide index, weight) of the `k` guides a child rooted at `root` blends, nearest first.
+    /// (guide index, weight) of the (at most) `k` guides a child rooted at `root` blends, nearest
+    /// first: of its `k` nearest, those on the nearest one's side of a parting.
     pub fn weights(&self, root: Vec3, k: usize) -> Vec<(usize, f32)> {
-        let found = self.index.nearest(root, k);
+        let mut found = self.index.nearest(root, k);
+        if let Some(&(first, _)) = found.first() {
+            let d0 = self.leaving[first];
+            found.retain(|&(g, _)| g == first || self.leaving[g].dot(d0) >= self.parting_cos);
+        }
         let ws: f32 = found.iter().map(|&(_, d)| 1.0 / (d * d + 1e-8)).sum();
         found.iter().map(|&(g, d)| (self.eligible[g], 1.0 / (d * d + 1e-8) / ws)).collect()
     }
+}
+
+/// The unit chord from a strand's root to its point `arc` metres along (or its tip, if shorter);
+/// zero for a strand of one point.
+fn leaving_direction(s: &[Vec3], arc: f32) -> Vec3 {
+    let mut walked = 0.0;
+    for w in s.windows(2) {
+        walked += (w[1] - w[0]).length();
+        if walked >= arc {
+            return (w[1] - s[0]).normalize_or_zero();
+        }
+    }
+    s.last().map_or(Vec3::ZERO, |&t| (t - s[0]).normalize_or_zero())
 }
 
 /// The ablation: straight strands along the scalp normal, `length` long, `segments` segments.
@@ -775,5 +811,38 @@ mod tests {
         assert_eq!((stats.full, stats.partly, stats.none), (0, 0, 1));
         assert!((stats.median_angle_deg - 30.0).abs() < 3.0, "{stats:?}");
         assert_eq!(kept.strand(0), guide.as_slice());
+    }
+
+    #[test]
+    fn a_child_between_guides_that_part_follows_its_nearest_guide() {
+        // Two guides 10 cm long whose roots are 1 cm apart: one leaves along +x, the other along -x
+        // (a parting between them). A child rooted 0.4 mm nearer the first one.
+        let guide = |x0: f32, dir: f32| (0..51).map(move |j| Vec3::new(x0 + dir * 0.002 * j as f32, 0.0, 0.0));
+        let guides = StrandSet::new(guide(0.0, 1.0).chain(guide(0.01, -1.0)).collect(), vec![51, 51]).unwrap();
+        let root = Vec3::new(0.0046, 0.001, 0.0);
+        let roots = Roots { positions: vec![root], normals: vec![Vec3::Z], growth: vec![Vec3::X] };
+        let child = |parting_deg: f32| {
+            let params = GrowParams { parting_deg, ..GrowParams::default() };
+            let c = interpolate_children(&guides, &roots, None, &params, &crate::progress::NoProgress).unwrap();
+            c.strand(0).to_vec()
+        };
+        let reach = |s: &[Vec3]| (s[s.len() - 1] - s[0]).length();
+
+        // Blending both, the segment vectors cancel but for the weights' difference (0.17 of a step).
+        let blended = child(180.0);
+        assert!(reach(&blended) < 0.03, "reach {} m", reach(&blended));
+        // With the parting rule the child takes the nearer guide's shape: 10 cm along +x, 2 mm steps.
+        let parted = child(90.0);
+        assert_eq!(parted.len(), 51);
+        assert!((parted[50] - (root + Vec3::X * 0.1)).length() < 1e-5, "tip {:?}", parted[50]);
+        for w in parted.windows(2) {
+            assert!(((w[1] - w[0]).length() - 0.002).abs() < 1e-6);
+        }
+        // Guides leaving within the angle still blend: the second guide turned to leave along +y
+        // (90° away) is kept at 90° and dropped at 80°.
+        let side: Vec<Vec3> = guide(0.0, 1.0).chain((0..51).map(|j| Vec3::new(0.01, 0.002 * j as f32, 0.0))).collect();
+        let guides = StrandSet::new(side, vec![51, 51]).unwrap();
+        let blend = |deg: f32| GuideBlend::new(&guides, 0.0, deg).weights(root, 2).len();
+        assert_eq!((blend(90.5), blend(80.0)), (2, 1));
     }
 }
