@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
-//! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`, `child_parting_deg`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `eval` (0: no metric table), and `upscale` (an integer: every
+//! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`, `child_parting_reach`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `eval` (0: no metric table), and `upscale` (an integer: every
 //! view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
 
@@ -97,7 +97,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "guide_opt" => o.guide_opt = f > 0.5,
             "child_k" => o.child_k = (f as usize).max(1),
             "child_min_guide_fraction" => o.child_min_guide_fraction = f,
-            "child_parting_deg" => o.child_parting_deg = f,
+            "child_parting_reach" => o.child_parting_reach = f,
             "wo" => o.weights.orientation = f,
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,

@@ -475,7 +475,7 @@ pub fn reconstruct(
     let dr_options = DrOptions {
         child_k: opts.grow.k,
         child_min_guide_fraction: opts.grow.min_guide_fraction,
-        child_parting_deg: opts.grow.parting_deg,
+        child_parting_reach: opts.grow.parting_reach,
         ..opts.dr_options.clone()
     };
     let r = dr_optimize(&guides, &children, &targets, scalp.bvh(), Some(&inner), &dr_options, progress)?;

@@ -37,9 +37,15 @@ pub struct ChildMap {
 impl ChildMap {
     /// Builds the map so that `forward(guides)` gives `children` back. Children blend their `k`
     /// nearest guides among those at least `min_guide_fraction` of the median guide long, on the
-    /// nearest guide's side of a parting (`parting_deg`), as growing chose them ([`GuideBlend`]).
-    pub fn new(guides: &StrandSet, children: &StrandSet, k: usize, min_guide_fraction: f32, parting_deg: f32) -> Self {
-        let blend = GuideBlend::new(guides, min_guide_fraction, parting_deg);
+    /// nearest alone where they part (`parting_reach`), as growing chose them ([`GuideBlend`]).
+    pub fn new(
+        guides: &StrandSet,
+        children: &StrandSet,
+        k: usize,
+        min_guide_fraction: f32,
+        parting_reach: f32,
+    ) -> Self {
+        let blend = GuideBlend::new(guides, min_guide_fraction, parting_reach);
         let k = k.max(1).min(blend.len().max(1));
         let nb: Vec<(u32, f32)> = children
             .iter()
@@ -189,7 +195,7 @@ mod tests {
             cc.push(len as u32);
         }
         let children = StrandSet::new(cp, cc).unwrap();
-        let mut map = ChildMap::new(&guides, &children, 3, 0.0, 180.0);
+        let mut map = ChildMap::new(&guides, &children, 3, 0.0, 0.0);
         let mut out = vec![Vec3::ZERO; children.num_points()];
         map.forward(guides.points(), &mut out);
         for (a, b) in out.iter().zip(children.points()) {
@@ -231,9 +237,9 @@ mod tests {
             map.forward(&pts, &mut b);
             a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f32, f32::max)
         };
-        let mut with_short = ChildMap::new(&guides, &children, 2, 0.0, 180.0);
+        let mut with_short = ChildMap::new(&guides, &children, 2, 0.0, 0.0);
         assert!(moved(&mut with_short, 1) > 1e-3, "the short guide is a neighbour without the minimum");
-        let mut without = ChildMap::new(&guides, &children, 2, 0.3, 180.0);
+        let mut without = ChildMap::new(&guides, &children, 2, 0.3, 0.0);
         assert_eq!(moved(&mut without, 1), 0.0);
         assert!(moved(&mut without, 0) > 1e-3 && moved(&mut without, 2) > 1e-3);
     }

@@ -230,9 +230,9 @@ pub struct DrOptions {
     /// Guides shorter than this fraction of the median guide take no part in the child map (the
     /// pipeline sets it to `GrowParams::min_guide_fraction`).
     pub child_min_guide_fraction: f32,
-    /// A child blends only guides within this angle of its nearest guide's leaving direction (the
-    /// pipeline sets it to `GrowParams::parting_deg`).
-    pub child_parting_deg: f32,
+    /// A child whose guides part follows the nearest alone (the pipeline sets it to
+    /// `GrowParams::parting_reach`).
+    pub child_parting_reach: f32,
     /// Points are kept at least this far outside the head, metres.
     pub head_clearance: f32,
     /// Points are pushed out of the head every this many steps (and at the end).
@@ -263,7 +263,7 @@ impl Default for DrOptions {
             uniform_adam: true,
             child_k: 2,
             child_min_guide_fraction: 0.3,
-            child_parting_deg: 90.0,
+            child_parting_reach: 0.5,
             head_clearance: 0.001,
             project_every: 10,
             equalize_at_end: true,

@@ -346,7 +346,7 @@ pub fn optimize(
         } else {
             let g0 = StrandSet::new(gx.clone(), guides.counts().to_vec()).map_err(|_| DrError::Empty)?;
             let c0 = StrandSet::new(cx.clone(), children.counts().to_vec()).map_err(|_| DrError::Empty)?;
-            Some(ChildMap::new(&g0, &c0, opts.child_k, opts.child_min_guide_fraction, opts.child_parting_deg))
+            Some(ChildMap::new(&g0, &c0, opts.child_k, opts.child_min_guide_fraction, opts.child_parting_reach))
         };
         let stats = run_stage(
             StageInput {
