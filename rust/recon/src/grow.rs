@@ -209,6 +209,7 @@ fn traced(points: &PointIndex, p: Vec3, prev: Vec3, params: &GrowParams) -> Opti
             continue;
         }
         let off = points.points[i] - p;
+        // c * c at the default power keeps the guides bit-identical to before the parameter existed.
         let cw = if params.trace_power == 2.0 { c * c } else { c.powf(params.trace_power) };
         let w = cw * (1.0 - off.length_squared() / (r * r)).max(0.0);
         acc += t * w;

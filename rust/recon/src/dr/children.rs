@@ -36,7 +36,7 @@ pub struct ChildMap {
 
 impl ChildMap {
     /// Builds the map so that `forward(guides)` gives `children` back. Children blend their `k`
-    /// nearest guides among those at least `min_guide_fraction` of the median guide long, on the
+    /// nearest guides among those at least `min_guide_fraction` of the median guide long, or the
     /// nearest alone where they part (`parting_reach`), as growing chose them ([`GuideBlend`]).
     pub fn new(
         guides: &StrandSet,
