@@ -6,10 +6,10 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example init_stage -- CAPTURE DIR OUT [key=value ...]`
 //! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
-//! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `gt_every` (score against every n-th
+//! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `root_gap`, `smooth_sigma` (and the other `GrowParams` fields), `gt_every` (score against every n-th
 //! ground-truth strand only, for speed). Environment: `GT_VOLUME=1` prints how much of the ground
 //! truth lies in the hair volume and inside the raw mesh; `START_ANGLES=1` how guides and ground truth
-//! leave the scalp; `DEBUG_ROOTS=1` prints the start of every 200th guide; `GT_GUIDES=1` replaces
+//! leave the scalp; `DEBUG_ROOTS=1` prints the start of every 200th guide (`DEBUG_EVERY=N`: every N-th); `GT_GUIDES=1` replaces
 //! the guides by the ground-truth strands rooted nearest their roots, to score the children's
 //! interpolation alone.
 
@@ -82,6 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "min_guide_fraction" => gp.min_guide_fraction = f,
             "parting_reach" => gp.parting_reach = f,
             "smooth_sigma" => gp.smooth_sigma = f,
+            "root_gap" => gp.root_gap = f,
             "smooth_lo" => gp.smooth_angles_deg[0] = f,
             "smooth_hi" => gp.smooth_angles_deg[1] = f,
             "gt_every" => gt_every = (f as usize).max(1),
@@ -215,7 +216,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("start: median angle of the chord to 2 mm / 2 cm from S(p_s): guides {g2:.1}° / {g20:.1}°, ground truth {t2:.1}° / {t20:.1}°");
     }
     if std::env::var_os("DEBUG_ROOTS").is_some() {
-        for i in (0..groots.len()).step_by(200) {
+        let every = std::env::var("DEBUG_EVERY").ok().and_then(|v| v.parse().ok()).unwrap_or(200usize);
+        for i in (0..groots.len()).step_by(every) {
             let p = groots.positions[i];
             let (pts, _) = grow_one(&flow, trace.as_ref(), p, groots.growth[i], &gp);
             let field = flow.grid.trilinear(&flow.field, p).unwrap_or(Vec3::ZERO).normalize_or_zero();
@@ -224,7 +226,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let segs: Vec<String> =
                 pts.windows(2).take(4).map(|w| format!("{:.2?}", (w[1] - w[0]).normalize())).collect();
             println!(
-                "root {i}: S {:.2?} normal {:.2?} field {field:.2?} sd_outer {so:.4} sd_inner {si:.4} segments {}",
+                "root {i} at {p:.3?}: S {:.2?} normal {:.2?} field {field:.2?} sd_outer {so:.4} sd_inner {si:.4} segments {}",
                 groots.growth[i],
                 groots.normals[i],
                 segs.join(" ")
