@@ -29,7 +29,8 @@ strands 54.3 -> 57.7 undirected, 50.8 -> 54.4 directed (gap 3.3), guides 36.3 ->
 Session 11 smooths those guides by 20 mm instead of 4 mm, and a child whose two guides leave the scalp on
 either side of a parting follows the nearer one alone: strands 57.7 -> 56.7 undirected, 54.4 -> 53.5 directed
 (gap 3.2), guides 38.5 -> 37.4 on this sparse capture (paper straight before DR: see the README); the floors
-stay.
+stay. Session 12 lets a root that the raw mesh's sign puts outside the hair start free of the outer surface
+on straight hair: strands 56.7 -> 56.9 undirected, 53.5 -> 53.7 directed, guides 37.4 -> 37.2; floors stay.
 """
 
 from __future__ import annotations
