@@ -261,9 +261,10 @@ impl Default for DrOptions {
             neighbor_reparam: true,
             guide_opt: true,
             uniform_adam: true,
-            child_k: 2,
-            child_min_guide_fraction: 0.3,
-            child_parting_reach: 0.5,
+            // The child map blends as the init's children do (the pipeline copies its GrowParams).
+            child_k: crate::grow::GrowParams::default().k,
+            child_min_guide_fraction: crate::grow::GrowParams::default().min_guide_fraction,
+            child_parting_reach: crate::grow::GrowParams::default().parting_reach,
             head_clearance: 0.001,
             project_every: 10,
             equalize_at_end: true,
