@@ -275,9 +275,10 @@ pub fn grow_one(
     let mut stop = Stop::MaxLength;
     let (mut escapes, mut escaping) = (0u32, 0usize);
     let mut s = 0usize;
-    // A free start (see `GrowParams::root_gap`): a root outside the raw mesh by more than
-    // `outer_margin` ignores the outer surface until the strand first gets inside it or has grown
-    // `root_gap`, and goes on through missing field meanwhile.
+    // A free start (see `GrowParams::root_gap`; here whenever it is on, the straight-hair gate is
+    // `grow_guides`'s): a root outside the raw mesh by more than `outer_margin` ignores the outer
+    // surface until the strand first gets inside it or has grown `root_gap`, and goes on through
+    // missing field meanwhile.
     let mut free =
         params.root_gap > 0.0 && flow.grid.trilinear(&flow.sd_outer, root).is_some_and(|d| d > params.outer_margin);
     let root_gap = (params.root_gap / params.step).ceil() as usize;
@@ -399,7 +400,9 @@ pub fn grow_one(
     (pts, stop)
 }
 
-/// Grows one guide per root, in parallel (cancellable between chunks).
+/// Grows one guide per root, in parallel (cancellable between chunks). With `root_gap` on and the
+/// hair straight (the median guide's point coherence at most `smooth_angles_deg[0]`), the roots that
+/// read outside the raw mesh are grown again with a free start ([`GrowParams::root_gap`]).
 pub fn grow_guides(
     flow: &FlowField,
     trace: Option<&PointIndex>,
@@ -427,7 +430,6 @@ pub fn grow_guides(
         let mut angles: Vec<f32> = all.par_iter().filter_map(|(g, _)| guide_coherence(g, points, radius)).collect();
         angles.sort_by(f32::total_cmp);
         let straight = angles.get(angles.len() / 2).is_some_and(|a| a.to_degrees() <= params.smooth_angles_deg[0]);
-        stats.free_starts = 0;
         if straight {
             let outside = |p: Vec3| flow.grid.trilinear(&flow.sd_outer, p).is_some_and(|d| d > params.outer_margin);
             let regrown: Vec<Option<(Vec<Vec3>, Stop)>> = (0..roots.len())
@@ -446,17 +448,15 @@ pub fn grow_guides(
         }
     }
     for (g, stop) in all {
-        {
-            match stop {
-                Stop::Outside => stats.outside += 1,
-                Stop::NotHair => stats.not_hair += 1,
-                Stop::Grid => stats.grid += 1,
-                Stop::MaxLength => stats.max_length += 1,
-                Stop::Loop => stats.loops += 1,
-            }
-            counts.push(g.len() as u32);
-            points.extend(g);
+        match stop {
+            Stop::Outside => stats.outside += 1,
+            Stop::NotHair => stats.not_hair += 1,
+            Stop::Grid => stats.grid += 1,
+            Stop::MaxLength => stats.max_length += 1,
+            Stop::Loop => stats.loops += 1,
         }
+        counts.push(g.len() as u32);
+        points.extend(g);
     }
     let set = StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty());
     if !set.is_empty() {
