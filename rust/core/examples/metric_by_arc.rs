@@ -66,8 +66,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (pb, gb) = (by_bin(&pred, step, bin, by_root)?, by_bin(&gt, step, bin, by_root)?);
     println!("arc (cm)   pred pts   P dir   P und  |   gt pts   R dir   R und");
     let (mut tp, mut tg) = ([0u64; 3], [0u64; 3]);
+    let pct = |hit: u64, n: usize| if n == 0 { f64::NAN } else { 100.0 * hit as f64 / n as f64 };
     for b in 0..pb.len().max(gb.len()).min(max_bins) {
-        let pct = |hit: u64, n: usize| if n == 0 { f64::NAN } else { 100.0 * hit as f64 / n as f64 };
         let (np, (pd, pu)) = pb.get(b).map_or((0, (vec![0], vec![0])), |q| (q.len(), gt_all.match_counts(q, &th)));
         let (ng, (rd, ru)) = gb.get(b).map_or((0, (vec![0], vec![0])), |q| (q.len(), pred_all.match_counts(q, &th)));
         tp = [tp[0] + np as u64, tp[1] + pd[0], tp[2] + pu[0]];
@@ -95,11 +95,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "all        {:>10}  {:>6.1}  {:>6.1}  | {:>9}  {:>6.1}  {:>6.1}   F1 directed {:.1}, undirected {:.1}",
         tp[0],
-        100.0 * tp[1] as f64 / tp[0].max(1) as f64,
-        100.0 * tp[2] as f64 / tp[0].max(1) as f64,
+        pct(tp[1], tp[0] as usize),
+        pct(tp[2], tp[0] as usize),
         tg[0],
-        100.0 * tg[1] as f64 / tg[0].max(1) as f64,
-        100.0 * tg[2] as f64 / tg[0].max(1) as f64,
+        pct(tg[1], tg[0] as usize),
+        pct(tg[2], tg[0] as usize),
         f(tp[1], tg[1], tp[0], tg[0]),
         f(tp[2], tg[2], tp[0], tg[0]),
     );

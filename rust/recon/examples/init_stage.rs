@@ -140,9 +140,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
     // Where the guides stop, by reason: a histogram of the tip height (10 cm bins from -0.5 m).
+    // Tips and starts of the guides as grown before free starts: `grow_one` alone cannot tell
+    // whether `grow_guides` let a guide start free (that depends on the whole style).
+    let fixed = GrowParams { root_gap: 0.0, ..gp };
     let mut hist = std::collections::BTreeMap::<String, [u32; 8]>::new();
     for i in 0..groots.len() {
-        let (pts, stop) = grow_one(&flow, trace.as_ref(), groots.positions[i], groots.growth[i], &gp);
+        let (pts, stop) = grow_one(&flow, trace.as_ref(), groots.positions[i], groots.growth[i], &fixed);
         let z = pts.last().map_or(0.0, |p| p.z);
         let b = (((z + 0.5) / 0.1).floor().max(0.0) as usize).min(7);
         let key = match stop {
@@ -219,7 +222,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let every = std::env::var("DEBUG_EVERY").ok().and_then(|v| v.parse().ok()).unwrap_or(200usize);
         for i in (0..groots.len()).step_by(every) {
             let p = groots.positions[i];
-            let (pts, _) = grow_one(&flow, trace.as_ref(), p, groots.growth[i], &gp);
+            let (pts, _) = grow_one(&flow, trace.as_ref(), p, groots.growth[i], &fixed);
             let field = flow.grid.trilinear(&flow.field, p).unwrap_or(Vec3::ZERO).normalize_or_zero();
             let so = flow.grid.trilinear(&flow.sd_outer, p).unwrap_or(f32::NAN);
             let si = flow.grid.trilinear(&flow.sd_inner, p).unwrap_or(f32::NAN);

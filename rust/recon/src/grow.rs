@@ -208,6 +208,21 @@ pub struct GrowStats {
     pub free_starts: u64,
 }
 
+/// Whether `root` reads more than `outer_margin` outside the raw mesh (see [`GrowParams::root_gap`]).
+fn reads_outside(flow: &FlowField, root: Vec3, params: &GrowParams) -> bool {
+    flow.grid.trilinear(&flow.sd_outer, root).is_some_and(|d| d > params.outer_margin)
+}
+
+/// The radius within which [`guide_coherence`] looks at the points: the tracing radius, or 2.5 mm
+/// when tracing is off.
+fn coherence_radius(params: &GrowParams) -> f32 {
+    if params.trace_radius > 0.0 {
+        params.trace_radius
+    } else {
+        0.0025
+    }
+}
+
 /// `d` turned back toward `prev` so that the angle between them is at most `max_turn`.
 fn limit_turn(prev: Vec3, d: Vec3, max_turn: f32) -> Vec3 {
     let c = prev.dot(d).clamp(-1.0, 1.0);
@@ -279,9 +294,8 @@ pub fn grow_one(
     // `grow_guides`'s): a root outside the raw mesh by more than `outer_margin` ignores the outer
     // surface until the strand first gets inside it or has grown `root_gap`, and goes on through
     // missing field meanwhile.
-    let mut free =
-        params.root_gap > 0.0 && flow.grid.trilinear(&flow.sd_outer, root).is_some_and(|d| d > params.outer_margin);
-    let root_gap = (params.root_gap / params.step).ceil() as usize;
+    let mut free = params.root_gap > 0.0 && reads_outside(flow, root, params);
+    let free_steps = (params.root_gap / params.step).ceil() as usize;
     while s < max_steps {
         let step_no = s;
         s += 1;
@@ -316,7 +330,7 @@ pub fn grow_one(
             }
             None => {
                 gap += 1;
-                if gap > if free { root_gap } else { max_gap } {
+                if gap > if free { free_steps } else { max_gap } {
                     stop = Stop::NotHair;
                     break;
                 }
@@ -330,7 +344,7 @@ pub fn grow_one(
         };
         // A strand bends by at most `max_turn` per step (a 6.5 mm curl turns 18° per 2 mm step).
         let mut d = limit_turn(prev, d, params.max_turn);
-        if free && (so <= 0.0 || step_no >= root_gap) {
+        if free && (so <= 0.0 || step_no >= free_steps) {
             free = false;
         }
         let mut nrm = Vec3::ZERO;
@@ -426,16 +440,15 @@ pub fn grow_guides(
     if let Some(points) = trace.filter(|_| params.root_gap > 0.0) {
         progress.check()?;
         progress.update("init", 1.0, "growing guides: free starts");
-        let radius = if params.trace_radius > 0.0 { params.trace_radius } else { 0.0025 };
+        let radius = coherence_radius(params);
         let mut angles: Vec<f32> = all.par_iter().filter_map(|(g, _)| guide_coherence(g, points, radius)).collect();
         angles.sort_by(f32::total_cmp);
         let straight = angles.get(angles.len() / 2).is_some_and(|a| a.to_degrees() <= params.smooth_angles_deg[0]);
         if straight {
-            let outside = |p: Vec3| flow.grid.trilinear(&flow.sd_outer, p).is_some_and(|d| d > params.outer_margin);
             let regrown: Vec<Option<(Vec<Vec3>, Stop)>> = (0..roots.len())
                 .into_par_iter()
                 .map(|i| {
-                    outside(roots.positions[i])
+                    reads_outside(flow, roots.positions[i], params)
                         .then(|| grow_one(flow, trace, roots.positions[i], roots.growth[i], params))
                 })
                 .collect();
@@ -559,7 +572,7 @@ pub fn smooth_guides(
         stats.none = guides.num_strands() as u64;
         return (guides.clone(), stats);
     };
-    let radius = if params.trace_radius > 0.0 { params.trace_radius } else { 0.0025 };
+    let radius = coherence_radius(params);
     let angles: Vec<Option<f32>> =
         (0..guides.num_strands()).into_par_iter().map(|g| guide_coherence(guides.strand(g), points, radius)).collect();
     let mut known: Vec<f32> = angles.iter().flatten().copied().collect();
