@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
-//! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`, `child_parting_reach`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `eval` (0: no metric table), and `upscale` (an integer: every
+//! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`, `child_parting_reach`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-entry Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an integer: every
 //! view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
 
@@ -95,9 +95,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "reparam" => o.reparam = f > 0.5,
             "n" => o.neighbor_reparam = f > 0.5,
             "guide_opt" => o.guide_opt = f > 0.5,
-            "child_k" => o.child_k = (f as usize).max(1),
-            "child_min_guide_fraction" => o.child_min_guide_fraction = f,
-            "child_parting_reach" => o.child_parting_reach = f,
+            "child_k" => o.child_blend.k = (f as usize).max(1),
+            "child_min_guide_fraction" => o.child_blend.min_guide_fraction = f,
+            "child_parting_reach" => o.child_blend.parting_reach = f,
             "wo" => o.weights.orientation = f,
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,
@@ -108,6 +108,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "cg_tol" => o.cg_tolerance = f,
             "eval" => eval = f > 0.5,
             "equalize" => o.equalize_at_end = f > 0.5,
+            "uniform" => o.uniform_adam = f > 0.5,
+            "aq" => o.adam_quantile = f,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
@@ -203,6 +205,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if !s.is_empty() {
             println!("{stage}: {} steps, {:.3} s per step (wall)", s.len(), s.iter().sum::<f32>() / s.len() as f32);
         }
+    }
+    for (name, a, b) in [("guides", &guides, &r.guides), ("children", &children, &r.children)] {
+        let mut d: Vec<f32> = a.points().iter().zip(b.points()).map(|(p, q)| (*p - *q).length() * 1e3).collect();
+        d.sort_by(f32::total_cmp);
+        let q = |f: f64| d.get(((d.len().max(1) - 1) as f64 * f) as usize).copied().unwrap_or(0.0);
+        println!(
+            "{name} points moved (mm): 10th {:.3}, median {:.3}, 90th {:.3}, 99th {:.3}, max {:.3}",
+            q(0.1),
+            q(0.5),
+            q(0.9),
+            q(0.99),
+            q(1.0)
+        );
     }
     std::fs::create_dir_all(&out)?;
     write_strands(out.join("guides.hair"), &r.guides)?;

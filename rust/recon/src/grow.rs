@@ -33,6 +33,37 @@ use crate::metrics::PointIndex;
 use crate::progress::{Cancelled, Progress};
 use crate::roots::Roots;
 
+/// How a child blends the guides, shared by [`interpolate_children`] and the DR's child map (so
+/// that both pick the same guides with the same weights); see [`GuideBlend`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BlendParams {
+    /// Guides per child. 2 on measurement (paper preset, `examples/init_stage ... children=50000
+    /// k=K`, undirected F1 at 2 mm/20°): curly k = 1/2/3/4 gave 33.7/50.7/49.5/47.9 (one guide
+    /// ends children wherever it ends; more guides blend curls of different phase into zig-zags),
+    /// straight k = 2/4 gave 79.9/79.8 (1 mm/10°: 54.5/56.2).
+    pub k: usize,
+    /// Children blend only guides at least this fraction of the median guide's length (0: every
+    /// guide): a guide that ended at its root, where the volume has no flow, would end its children
+    /// there too. Relative, so that short styles keep their guides. Measured (`examples/init_stage
+    /// ... children=50000 min_guide_fraction=F`, undirected F1 at 2 mm/20°): paper curly 50.7 → 52.8
+    /// at 0.3 (recall 53.7 → 60.3; absolute minima of 2, 8, 15 cm gave 52.0, 52.6, 53.1), paper
+    /// straight 79.9 → 79.8, the sparse test preset 56.2 → 54.3.
+    pub min_guide_fraction: f32,
+    /// Partings: where the `k` guides a child blends leave the scalp in nearly opposite directions
+    /// (a parting or a crown whorl between them), the mean of their segment vectors nearly cancels
+    /// and the child crumples at its root (segments 0.02 mm long for the first centimetres, which no
+    /// resampling evens out). A child whose blend of the guides' leaving directions (unit chords
+    /// over their first [`PARTING_ARC`], with the child's weights) is shorter than `parting_reach`
+    /// follows its nearest guide alone (0: off). Measured in [`GuideBlend`].
+    pub parting_reach: f32,
+}
+
+impl Default for BlendParams {
+    fn default() -> Self {
+        Self { k: 2, min_guide_fraction: 0.3, parting_reach: 0.5 }
+    }
+}
+
 /// Parameters of growing.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GrowParams {
@@ -43,11 +74,8 @@ pub struct GrowParams {
     pub outer_margin: f32,
     /// Points are kept at least this far outside the head, metres.
     pub head_clearance: f32,
-    /// Guides per child. 2 on measurement (paper preset, `examples/init_stage ... children=50000
-    /// k=K`, undirected F1 at 2 mm/20°): curly k = 1/2/3/4 gave 33.7/50.7/49.5/47.9 (one guide
-    /// ends children wherever it ends; more guides blend curls of different phase into zig-zags),
-    /// straight k = 2/4 gave 79.9/79.8 (1 mm/10°: 54.5/56.2).
-    pub k: usize,
+    /// How children blend the guides (shared with the DR's child map).
+    pub blend: BlendParams,
     /// Growth goes straight on through up to this length of non-hair voxels, metres.
     pub max_gap: f32,
     /// At the outer surface, growth ends when the flow points out of it with a cosine above this;
@@ -87,20 +115,6 @@ pub struct GrowParams {
     pub trace_power: f32,
     /// The largest turn per step, radians: no kinks for the simulation or the DR's segment evening.
     pub max_turn: f32,
-    /// Children blend only guides at least this fraction of the median guide's length (0: every
-    /// guide): a guide that ended at its root, where the volume has no flow, would end its children
-    /// there too. Relative, so that short styles keep their guides. Measured (`examples/init_stage
-    /// ... children=50000 min_guide_fraction=F`, undirected F1 at 2 mm/20°): paper curly 50.7 → 52.8
-    /// at 0.3 (recall 53.7 → 60.3; absolute minima of 2, 8, 15 cm gave 52.0, 52.6, 53.1), paper
-    /// straight 79.9 → 79.8, the sparse test preset 56.2 → 54.3.
-    pub min_guide_fraction: f32,
-    /// Partings: where the `k` guides a child blends leave the scalp in nearly opposite directions
-    /// (a parting or a crown whorl between them), the mean of their segment vectors nearly cancels
-    /// and the child crumples at its root (segments 0.02 mm long for the first centimetres, which no
-    /// resampling evens out). A child whose blend of the guides' leaving directions (unit chords
-    /// over their first [`PARTING_ARC`], with the child's weights) is shorter than `parting_reach`
-    /// follows its nearest guide alone (0: off). Measured in [`GuideBlend`].
-    pub parting_reach: f32,
     /// Smoothing of straight guides: a guide is smoothed along its length (its segment vectors by a
     /// Gaussian of `smooth_sigma` metres, the root kept) when the directed points along it are
     /// coherent: their mean angle to their local mean direction (within `trace_radius`) is at most
@@ -134,7 +148,7 @@ impl Default for GrowParams {
             max_length: 0.6,
             outer_margin: 0.003,
             head_clearance: 0.001,
-            k: 2,
+            blend: BlendParams::default(),
             max_gap: 0.02,
             exit_cos: 1.0,
             exit_after: 0.0,
@@ -149,8 +163,6 @@ impl Default for GrowParams {
             trace_min_cos: 0.3,
             trace_power: 2.0,
             max_turn: 40f32.to_radians(),
-            min_guide_fraction: 0.3,
-            parting_reach: 0.5,
             smooth_sigma: 0.02,
             smooth_angles_deg: [12.0, 14.5],
             root_gap: 0.15,
@@ -560,7 +572,7 @@ pub struct SmoothStats {
 /// directed 79.4 → 81.3): the straight guides' wiggles are tracing noise over centimetres. The
 /// default since session 11, when the DR test's one uneven strand (`tests/pipeline_dr.rs`, a
 /// max/min segment ratio of 2.02) turned out to be a child blending two guides on either side of a
-/// parting, now prevented by [`GrowParams::parting_reach`].
+/// parting, now prevented by [`BlendParams::parting_reach`].
 pub fn smooth_guides(
     guides: &StrandSet,
     points: Option<&PointIndex>,
@@ -618,7 +630,7 @@ pub fn interpolate_children(
     if guides.is_empty() {
         return Ok(StrandSet::empty());
     }
-    let blend = GuideBlend::new(guides, params.min_guide_fraction, params.parting_reach);
+    let blend = GuideBlend::new(guides, &params.blend);
     let mut points = Vec::new();
     let mut counts = Vec::new();
     let chunk = 4096;
@@ -629,7 +641,7 @@ pub fn interpolate_children(
             .par_iter()
             .map(|&i| {
                 let root = roots.positions[i];
-                let w = blend.weights(root, params.k);
+                let w = blend.weights(root, params.blend.k);
                 let len: f32 = w.iter().map(|&(g, wt)| guides.strand(g).len() as f32 * wt).sum();
                 let n = (len.round() as usize).max(2);
                 let mut pts = Vec::with_capacity(n);
@@ -667,12 +679,12 @@ pub fn interpolate_children(
     Ok(StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty()))
 }
 
-/// Arc length over which a guide's leaving direction is taken for [`GrowParams::parting_reach`].
+/// Arc length over which a guide's leaving direction is taken for [`BlendParams::parting_reach`].
 pub const PARTING_ARC: f32 = 0.02;
 
 /// Which guides a child blends, and how much: its `k` nearest guide roots among the guides at least
 /// `fraction` of the median guide length long (every guide when none is), weights `1/d²` summing to
-/// one; only the nearest when the guides part (see [`GrowParams::parting_reach`]). Shared by
+/// one; only the nearest when the guides part (see [`BlendParams::parting_reach`]). Shared by
 /// [`interpolate_children`] and the DR's child map, so that both pick the same guides.
 ///
 /// The parting rule, measured in session 11 on the freshly rendered paper straight capture
@@ -691,7 +703,8 @@ pub struct GuideBlend {
 }
 
 impl GuideBlend {
-    pub fn new(guides: &StrandSet, fraction: f32, parting_reach: f32) -> Self {
+    pub fn new(guides: &StrandSet, params: &BlendParams) -> Self {
+        let (fraction, parting_reach) = (params.min_guide_fraction, params.parting_reach);
         let lengths: Vec<f32> = (0..guides.num_strands()).map(|g| guides.strand_length(g)).collect();
         let mut sorted = lengths.clone();
         sorted.sort_by(f32::total_cmp);
@@ -964,7 +977,8 @@ mod tests {
         let root = Vec3::new(0.0046, 0.001, 0.0);
         let roots = Roots { positions: vec![root], normals: vec![Vec3::Z], growth: vec![Vec3::X] };
         let child = |parting_reach: f32| {
-            let params = GrowParams { parting_reach, ..GrowParams::default() };
+            let params =
+                GrowParams { blend: BlendParams { parting_reach, ..BlendParams::default() }, ..GrowParams::default() };
             let c = interpolate_children(&guides, &roots, None, &params, &crate::progress::NoProgress).unwrap();
             c.strand(0).to_vec()
         };
@@ -984,7 +998,10 @@ mod tests {
         // the nearest alone at 0.8.
         let side: Vec<Vec3> = guide(0.0, 1.0).chain((0..51).map(|j| Vec3::new(0.01, 0.002 * j as f32, 0.0))).collect();
         let guides = StrandSet::new(side, vec![51, 51]).unwrap();
-        let blend = |reach: f32| GuideBlend::new(&guides, 0.0, reach).weights(root, 2);
+        let blend = |reach: f32| {
+            GuideBlend::new(&guides, &BlendParams { k: 2, min_guide_fraction: 0.0, parting_reach: reach })
+                .weights(root, 2)
+        };
         assert_eq!(blend(0.5).len(), 2);
         assert_eq!(blend(0.8), vec![(0, 1.0)]);
     }

@@ -472,12 +472,7 @@ pub fn reconstruct(
     let t_targets = t.elapsed().as_secs_f64();
     let t_opt = Instant::now();
     // The guide stage's child map blends as many guides as growing did.
-    let dr_options = DrOptions {
-        child_k: opts.grow.k,
-        child_min_guide_fraction: opts.grow.min_guide_fraction,
-        child_parting_reach: opts.grow.parting_reach,
-        ..opts.dr_options.clone()
-    };
+    let dr_options = DrOptions { child_blend: opts.grow.blend, ..opts.dr_options.clone() };
     let r = dr_optimize(&guides, &children, &targets, scalp.bvh(), Some(&inner), &dr_options, progress)?;
     let t_opt = t_opt.elapsed().as_secs_f64();
     progress.check()?;

@@ -247,7 +247,11 @@ fn loss_chain_matches_finite_differences() {
     let start = shortened(&gt, 0.7);
     let guides = start.select(&[0, 4, 8]);
     let o = DrOptions { width_m: width, views_per_step: cams.len(), ..Default::default() };
-    let mut map = ChildMap::new(&guides, &start, 2, 0.0, 0.0);
+    let mut map = ChildMap::new(
+        &guides,
+        &start,
+        &hairrecon_recon::grow::BlendParams { k: 2, min_guide_fraction: 0.0, parting_reach: 0.0 },
+    );
     let mut ev = Evaluator::new(guides.points(), guides.offsets(), Some(&map), &t, &o);
     let views: Vec<usize> = (0..cams.len()).collect();
     let x0 = guides.points().to_vec();

@@ -16,11 +16,26 @@ pub struct Adam {
     pub beta2: f32,
     pub eps: f32,
     pub uniform: bool,
+    /// Uniform variant only: the quantile of the points' second moments (each point's largest
+    /// coordinate) that scales the step; 1 is the maximum of Nicolet et al. Below 1, a point whose
+    /// step would be longer than the learning rate is shortened to it.
+    pub quantile: f32,
+    scratch: Vec<f32>,
 }
 
 impl Adam {
     pub fn new(n: usize, uniform: bool) -> Self {
-        Self { m: vec![Vec3::ZERO; n], v: vec![Vec3::ZERO; n], t: 0, beta1: 0.9, beta2: 0.999, eps: 1e-12, uniform }
+        Self {
+            m: vec![Vec3::ZERO; n],
+            v: vec![Vec3::ZERO; n],
+            t: 0,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-12,
+            uniform,
+            quantile: 1.0,
+            scratch: Vec::new(),
+        }
     }
 
     /// One step: `delta = −lr · m̂ / (√v̂ + ε)` (uniform: `√v̂` replaced by its maximum).
@@ -35,7 +50,16 @@ impl Adam {
             self.v[i] = self.v[i] * b2 + g[i] * g[i] * (1.0 - b2);
             vmax = vmax.max(self.v[i].max_element());
         }
-        if self.uniform {
+        if self.uniform && self.quantile < 1.0 && !g.is_empty() {
+            self.scratch.clear();
+            self.scratch.extend(self.v.iter().map(|v| v.max_element()));
+            let k = ((self.scratch.len() - 1) as f32 * self.quantile.max(0.0)) as usize;
+            let (_, vq, _) = self.scratch.select_nth_unstable_by(k, f32::total_cmp);
+            let s = -lr / c1 / ((*vq / c2).sqrt() + self.eps);
+            for i in 0..g.len() {
+                delta[i] = (self.m[i] * s).clamp_length_max(lr);
+            }
+        } else if self.uniform {
             let s = -lr / c1 / ((vmax / c2).sqrt() + self.eps);
             for i in 0..g.len() {
                 delta[i] = self.m[i] * s;
@@ -64,5 +88,22 @@ mod tests {
         u.step(&g, 0.1, &mut d);
         // Uniform: the largest entry moves by lr, the others in proportion to their gradient.
         assert!((d[1].z + 0.1).abs() < 1e-5 && (d[0].x + 0.05).abs() < 1e-5, "{d:?}");
+    }
+
+    #[test]
+    fn a_quantile_scales_the_typical_point_and_clamps_the_outlier() {
+        // Nine points with gradient 1 along x and one outlier with 100: the maximum makes the nine
+        // move by lr/100, the median (0.5 quantile) by lr, and the outlier is clamped to lr.
+        let mut g = vec![Vec3::X; 10];
+        g[9] = Vec3::X * 100.0;
+        let mut d = vec![Vec3::ZERO; 10];
+        let mut a = Adam::new(10, true);
+        a.step(&g, 0.1, &mut d);
+        assert!((d[0].x + 0.001).abs() < 1e-6 && (d[9].x + 0.1).abs() < 1e-5, "{d:?}");
+        let mut q = Adam::new(10, true);
+        q.quantile = 0.5;
+        q.step(&g, 0.1, &mut d);
+        assert!((d[0].x + 0.1).abs() < 1e-5, "{d:?}");
+        assert!((d[9].length() - 0.1).abs() < 1e-5, "{d:?}");
     }
 }

@@ -15,7 +15,7 @@ use glam::Vec3;
 use hairrecon_core::StrandSet;
 use rayon::prelude::*;
 
-use crate::grow::GuideBlend;
+use crate::grow::{BlendParams, GuideBlend};
 
 /// Chunks of children summed separately in [`ChildMap::backward`] (a constant, so that the sum order
 /// does not depend on the thread count).
@@ -35,18 +35,11 @@ pub struct ChildMap {
 }
 
 impl ChildMap {
-    /// Builds the map so that `forward(guides)` gives `children` back. Children blend their `k`
-    /// nearest guides among those at least `min_guide_fraction` of the median guide long, or the
-    /// nearest alone where they part (`parting_reach`), as growing chose them ([`GuideBlend`]).
-    pub fn new(
-        guides: &StrandSet,
-        children: &StrandSet,
-        k: usize,
-        min_guide_fraction: f32,
-        parting_reach: f32,
-    ) -> Self {
-        let blend = GuideBlend::new(guides, min_guide_fraction, parting_reach);
-        let k = k.max(1).min(blend.len().max(1));
+    /// Builds the map so that `forward(guides)` gives `children` back. Children blend the guides as
+    /// growing chose them ([`GuideBlend`] with `params`).
+    pub fn new(guides: &StrandSet, children: &StrandSet, params: &BlendParams) -> Self {
+        let blend = GuideBlend::new(guides, params);
+        let k = params.k.max(1).min(blend.len().max(1));
         let nb: Vec<(u32, f32)> = children
             .iter()
             .collect::<Vec<_>>()
@@ -195,7 +188,8 @@ mod tests {
             cc.push(len as u32);
         }
         let children = StrandSet::new(cp, cc).unwrap();
-        let mut map = ChildMap::new(&guides, &children, 3, 0.0, 0.0);
+        let mut map =
+            ChildMap::new(&guides, &children, &BlendParams { k: 3, min_guide_fraction: 0.0, parting_reach: 0.0 });
         let mut out = vec![Vec3::ZERO; children.num_points()];
         map.forward(guides.points(), &mut out);
         for (a, b) in out.iter().zip(children.points()) {
@@ -237,9 +231,11 @@ mod tests {
             map.forward(&pts, &mut b);
             a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f32, f32::max)
         };
-        let mut with_short = ChildMap::new(&guides, &children, 2, 0.0, 0.0);
+        let mut with_short =
+            ChildMap::new(&guides, &children, &BlendParams { k: 2, min_guide_fraction: 0.0, parting_reach: 0.0 });
         assert!(moved(&mut with_short, 1) > 1e-3, "the short guide is a neighbour without the minimum");
-        let mut without = ChildMap::new(&guides, &children, 2, 0.3, 0.0);
+        let mut without =
+            ChildMap::new(&guides, &children, &BlendParams { k: 2, min_guide_fraction: 0.3, parting_reach: 0.0 });
         assert_eq!(moved(&mut without, 1), 0.0);
         assert!(moved(&mut without, 0) > 1e-3 && moved(&mut without, 2) > 1e-3);
     }

@@ -225,14 +225,12 @@ pub struct DrOptions {
     pub guide_opt: bool,
     /// The uniform Adam of Nicolet et al. (false: per-coordinate Adam).
     pub uniform_adam: bool,
-    /// Guides per child in the guide stage's child map (the pipeline sets it to `GrowParams::k`).
-    pub child_k: usize,
-    /// Guides shorter than this fraction of the median guide take no part in the child map (the
-    /// pipeline sets it to `GrowParams::min_guide_fraction`).
-    pub child_min_guide_fraction: f32,
-    /// A child whose guides part follows the nearest alone (the pipeline sets it to
-    /// `GrowParams::parting_reach`).
-    pub child_parting_reach: f32,
+    /// With the uniform Adam: the quantile of the points' second moments that scales the step (1:
+    /// the maximum, as Nicolet et al.; below 1, longer steps are clamped to `lr`).
+    pub adam_quantile: f32,
+    /// How the guide stage's child map blends the guides (the pipeline sets it to
+    /// `GrowParams::blend`, so that it matches the init's children).
+    pub child_blend: crate::grow::BlendParams,
     /// Points are kept at least this far outside the head, metres.
     pub head_clearance: f32,
     /// Points are pushed out of the head every this many steps (and at the end).
@@ -261,10 +259,8 @@ impl Default for DrOptions {
             neighbor_reparam: true,
             guide_opt: true,
             uniform_adam: true,
-            // The child map blends as the init's children do (the pipeline copies its GrowParams).
-            child_k: crate::grow::GrowParams::default().k,
-            child_min_guide_fraction: crate::grow::GrowParams::default().min_guide_fraction,
-            child_parting_reach: crate::grow::GrowParams::default().parting_reach,
+            adam_quantile: 1.0,
+            child_blend: crate::grow::BlendParams::default(),
             head_clearance: 0.001,
             project_every: 10,
             equalize_at_end: true,

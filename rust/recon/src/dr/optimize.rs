@@ -250,6 +250,7 @@ fn run_stage(
     let mut order: Vec<usize> = (0..nv).collect();
     let mut picker = Picker(hairrecon_core::scalp::splitmix64(opts.seed ^ steps_before as u64) | 1);
     let mut adam = Adam::new(nf, opts.uniform_adam);
+    adam.quantile = opts.adam_quantile;
     let mut g_x = vec![Vec3::ZERO; x.len()];
     let mut g_free = vec![Vec3::ZERO; nf];
     let mut g_u = vec![Vec3::ZERO; nf];
@@ -346,7 +347,7 @@ pub fn optimize(
         } else {
             let g0 = StrandSet::new(gx.clone(), guides.counts().to_vec()).map_err(|_| DrError::Empty)?;
             let c0 = StrandSet::new(cx.clone(), children.counts().to_vec()).map_err(|_| DrError::Empty)?;
-            Some(ChildMap::new(&g0, &c0, opts.child_k, opts.child_min_guide_fraction, opts.child_parting_reach))
+            Some(ChildMap::new(&g0, &c0, &opts.child_blend))
         };
         let stats = run_stage(
             StageInput {
