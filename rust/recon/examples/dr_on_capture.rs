@@ -1,12 +1,15 @@
 //! DR strand optimization on the output of `hairrecon reconstruct CAPTURE --out DIR --stop-after
 //! init`: reads `DIR/guides.hair`, `DIR/strands.hair` and `DIR/orient2d/*.exr`, optimizes, writes
 //! `OUT/guides.hair` and `OUT/strands.hair`, and prints the metric table before and after (when the
-//! capture has ground truth) and the time per iteration.
+//! capture has ground truth), the time per iteration, and how far the points moved (percentiles of
+//! each point's distance from its start, after the finalization).
 //!
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
-//! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`, `child_parting_reach`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-entry Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an integer: every
-//! view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
+//! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`,
+//! `child_parting_reach`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
+//! Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an
+//! integer: every view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
 
 use std::path::PathBuf;

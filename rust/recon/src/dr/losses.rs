@@ -31,8 +31,11 @@ pub struct LossWeights {
 }
 
 impl Default for LossWeights {
+    /// Curvature 0.05: with the uniform Adam's 0.99 quantile (points move, see `DrOptions::
+    /// adam_quantile`) a weight of 0.5 straightened curls (paper curly, 20 guide steps: 50.7
+    /// against 52.1 at 0.05, undirected F1 at 2 mm/20°) and 0.05 cost straight nothing (85.1 both).
     fn default() -> Self {
-        Self { mask: 1.0, orientation: 0.5, curvature: 0.5, length: 0.5 }
+        Self { mask: 1.0, orientation: 0.5, curvature: 0.05, length: 0.5 }
     }
 }
 

@@ -22,7 +22,9 @@
 //! - Synthetic scene of `tests/dr.rs` (240 strands on a 9 cm sphere, 8 views of 160 px, strands cut
 //!   to 80% and bent up to 4 mm; width 1 mm ≈ 0.4 px): directed F1 at 2 mm/20° 70.4 → 91.4, mean tip
 //!   error 20.5 → 10.0 mm; w/o reparam 85.9 / 10.9 mm; w/o N 88.3 / 10.6 mm (lr 2e-3, λ 10, N weight
-//!   0.05, 150 guide + 100 child steps, 4 views per step).
+//!   0.05, 150 guide + 100 child steps, 4 views per step). Session 13's defaults (the uniform
+//!   Adam's 0.99 quantile, curvature weight 0.05; `cargo test --release -p hairrecon-recon --test dr
+//!   -- --nocapture`): 70.4 → 89.8, tip error 10.8 mm; w/o reparam 81.6 / 11.7 mm.
 //! - Test-preset capture (16 views of 171×256 px, 1,000 guides, 10,000 children, width 0.2 mm,
 //!   `examples/dr_on_capture.rs`): directed P/R/F1 at 2 mm/20° 53.0/34.0/41.5 before, 54.4/34.4/42.1
 //!   after 60 guide + 20 child steps of 4 random views (1.5 s wall per step), 53.7/34.2/41.8 after
@@ -226,7 +228,15 @@ pub struct DrOptions {
     /// The uniform Adam of Nicolet et al. (false: per-coordinate Adam).
     pub uniform_adam: bool,
     /// With the uniform Adam: the quantile of the points' second moments that scales the step (1:
-    /// the maximum, as Nicolet et al.; below 1, longer steps are clamped to `lr`).
+    /// the maximum, as Nicolet et al.; below 1, longer steps are clamped to `lr`). With the maximum
+    /// over 50,000 strands a few points with large gradients set the scale and the rest do not move:
+    /// on the paper curly capture 20 guide steps moved the median point 0.05 mm (0.07 mm on
+    /// straight), and F1 stayed where it was (51.9 → 51.9; straight 84.5 → 84.7). Per-coordinate
+    /// Adam moves every point about `lr` per step, noise included: median 5 mm after 20 steps,
+    /// straight 84.5 → 79.1, curly 51.9 → 48.6. The 0.99 quantile sits between (median 0.4–0.8 mm):
+    /// straight 85.1, curly 52.1 with curvature weight 0.05 (the 0.9 quantile: straight 84.5).
+    /// Measured with `examples/dr_on_capture CAPTURE INIT OUT guides_iters=20 children_iters=0
+    /// equalize=0 [uniform=0 | aq=Q] [wc=W]` on the session-12 inits, undirected F1 at 2 mm/20°.
     pub adam_quantile: f32,
     /// How the guide stage's child map blends the guides (the pipeline sets it to
     /// `GrowParams::blend`, so that it matches the init's children).
@@ -259,7 +269,7 @@ impl Default for DrOptions {
             neighbor_reparam: true,
             guide_opt: true,
             uniform_adam: true,
-            adam_quantile: 1.0,
+            adam_quantile: 0.99,
             child_blend: crate::grow::BlendParams::default(),
             head_clearance: 0.001,
             project_every: 10,
