@@ -40,7 +40,7 @@
 //!   at the paper preset's image size (`examples/dr_on_capture.rs` with `upscale=2`): 5.6 s per
 //!   guide step and 9.9 s per child step.
 //! - Synthetic capture of `tests/pipeline_dr.rs` (alpha mattes as masks, strands 1 mm wide,
-//!   60 + 30 steps): F1 78.9 → 82.6.
+//!   60 + 30 steps): F1 78.9 → 82.6; 78.3 → 86.3 with session 13's defaults.
 //!
 //! - Paper curly capture (session 5, `examples/dr_on_capture.rs` on the saved init): the final
 //!   segment evening alone had lowered undirected F1 at 2 mm/20° from 47.9 to 41.5 (it resampled
