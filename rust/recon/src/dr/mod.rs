@@ -204,8 +204,8 @@ pub struct DrOptions {
     pub iterations_guides: usize,
     /// Adam steps on the children.
     pub iterations_children: usize,
-    /// Adam learning rate in u, metres per step (the largest step of one coordinate of u with the
-    /// uniform Adam).
+    /// Adam learning rate in u, metres per step (with the uniform Adam: the step of a point at
+    /// `adam_quantile`, and the longest step of any point).
     pub lr: f32,
     /// λ of `u = (I + λL) x`.
     pub lambda: f32,
