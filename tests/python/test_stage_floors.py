@@ -14,9 +14,11 @@ not:
 | orient3d  | precision of the points at 2 mm / 20 deg         | 84.3 %   | >= 80   |
 | orient3d  | coverage of the visible hair surface             | 37.8 %   | >= 33   |
 | direction | points whose direction agrees with the GT        | 100.0 %  | >= 97   |
-| init      | strands: undirected F1 at 2 mm / 20 deg          | 57.7     | >= 55   |
-| init      | strands: directed F1 within 3 of undirected      | 3.3      | <= 4.0  |
-| init      | guides: undirected F1 at 2 mm / 20 deg           | 38.5     | >= 35   |
+| init      | strands: undirected F1 at 2 mm / 20 deg          | 60.0     | >= 57   |
+| init      | strands: directed F1 within 3 of undirected      | 0.0      | <= 1.5  |
+| init      | guides: undirected F1 at 2 mm / 20 deg           | 37.5     | >= 35   |
+
+(The orient2d to direction figures as measured 2026-11-21; the init row as measured 2026-11-24, session 14.)
 
 Session 4 changed the direction solver (least squares over the graph), let guides trace the 3D points
 and limited a step's turn to 40 degrees: strands 51.3 -> 56.1, guides 30.2 -> 36.3 (tracing alone,
@@ -31,6 +33,9 @@ either side of a parting follows the nearer one alone: strands 57.7 -> 56.7 undi
 (gap 3.2), guides 38.5 -> 37.4 on this sparse capture (paper straight before DR: see the README); the floors
 stay. Session 12 lets a root that the raw mesh's sign puts outside the hair start free of the outer surface
 on straight hair: strands 56.7 -> 56.9 undirected, 53.5 -> 53.7 directed, guides 37.4 -> 37.2; floors stay.
+Session 14 stops strands from climbing beyond their first 3 cm (`GrowParams::max_climb`): strands 56.9 ->
+60.0 undirected, 53.7 -> 60.0 directed (gap 3.2 -> 0.0), guides 37.2 -> 37.5; floors 55 -> 57 and the gap's
+4.0 -> 1.5.
 """
 
 from __future__ import annotations
@@ -86,6 +91,6 @@ def test_init_floor(init_metrics):
     und, dirc = _f1(s, "undirected", 2.0), _f1(s, "directed", 2.0)
     gu = _f1(g, "undirected", 2.0)
     print(f"init: strands undirected F1 {und:.1f}, directed {dirc:.1f}; guides undirected {gu:.1f} (2 mm / 20 deg)")
-    assert und >= 55.0
-    assert und - dirc <= 4.0
+    assert und >= 57.0
+    assert und - dirc <= 1.5
     assert gu >= 35.0

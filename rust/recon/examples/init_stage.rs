@@ -83,6 +83,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "parting_reach" => gp.blend.parting_reach = f,
             "smooth_sigma" => gp.smooth_sigma = f,
             "root_gap" => gp.root_gap = f,
+            "max_climb" => gp.max_climb = f,
+            "climb_after" => gp.climb_after = f,
             "smooth_lo" => gp.smooth_angles_deg[0] = f,
             "smooth_hi" => gp.smooth_angles_deg[1] = f,
             "gt_every" => gt_every = (f as usize).max(1),

@@ -139,6 +139,24 @@ pub struct GrowParams {
     /// guide regardless of the style, curly 31.2 → 26.7 and wavy 38.0 → 39.5; gated per guide by
     /// its own coherence, straight 76.0, curly 31.0, wavy 38.5.
     pub root_gap: f32,
+    /// Gravity: beyond `climb_after` metres of arc, a step rises at most `max_climb` (the sine of
+    /// its angle above the horizontal; 1: off), both the direction the field and the points give
+    /// and the step that the outer surface's projection makes of it. Hair under gravity does not
+    /// climb once it has left the scalp, but the strands did: on the paper preset 10–14% of their
+    /// steps beyond 6 cm went up (the ground truth's: straight and wavy 0%, curly 1–9%, the
+    /// helices), nearly all of them where the outer surface's projection pushed them (the raw
+    /// mesh's surface pieces inside the hair), and a climbing step is one that matches the ground
+    /// truth only reversed. Measured at full size (`examples/init_stage bench_out/paper_STYLE_brown
+    /// DIR OUT children=50000 [max_climb=1]` on session 13's direction outputs; undirected /
+    /// directed F1 at 2 mm/20°, off → on): straight 84.5 / 82.1 → 85.9 / 85.8, wavy 53.5 / 47.4 →
+    /// 55.3 / 54.7, curly 51.9 / 40.8 → 49.1 / 44.5 (the curls' climbing steps matched reversed
+    /// helices); test preset 56.9 / 53.7 → 60.0 / 60.0. Proxy (`children=10000 gt_every=5`),
+    /// `climb_after` 1 / 3 / 6 cm: straight 77.9 / 78.3 / 78.4, wavy 39.9 / 39.7 / 39.4, curly
+    /// 28.8 / 29.3 / 29.6 (off: 77.2, 38.0, 31.2); `max_climb` 0.1 / 0.2 / 0.3 at 1 cm: wavy
+    /// 39.9 / 38.5 / 36.8, curly 29.2 / – / 31.3. Clamping the direction alone, not the projected
+    /// step, left 7–9% of the curly steps climbing.
+    pub max_climb: f32,
+    pub climb_after: f32,
 }
 
 impl Default for GrowParams {
@@ -166,6 +184,8 @@ impl Default for GrowParams {
             smooth_sigma: 0.02,
             smooth_angles_deg: [12.0, 14.5],
             root_gap: 0.15,
+            max_climb: 0.0,
+            climb_after: 0.03,
         }
     }
 }
@@ -244,6 +264,19 @@ fn limit_turn(prev: Vec3, d: Vec3, max_turn: f32) -> Vec3 {
     let axis = prev.cross(d);
     let axis = if axis.length_squared() > 1e-12 { axis.normalize() } else { prev.any_orthonormal_vector() };
     glam::Quat::from_axis_angle(axis, max_turn) * prev
+}
+
+/// `v` with its rise above the horizontal limited to `max_climb` of its length (its horizontal
+/// direction kept, or `fallback`'s if `v` is vertical; unchanged if both are).
+fn limit_climb(v: Vec3, max_climb: f32, fallback: Vec3) -> Vec3 {
+    let l = v.length();
+    if l <= 0.0 || v.z <= max_climb * l {
+        return v;
+    }
+    let h = Vec3::new(v.x, v.y, 0.0);
+    let h = if h.length_squared() > 1e-12 * l * l { h } else { Vec3::new(fallback.x, fallback.y, 0.0) };
+    let Some(h) = h.try_normalize() else { return v };
+    (h * (1.0 - max_climb * max_climb).max(0.0).sqrt() + Vec3::Z * max_climb) * l
 }
 
 /// The direction the directed points near `p` give a strand going `prev`, and their weight.
@@ -356,6 +389,10 @@ pub fn grow_one(
         };
         // A strand bends by at most `max_turn` per step (a 6.5 mm curl turns 18° per 2 mm step).
         let mut d = limit_turn(prev, d, params.max_turn);
+        let climb = params.max_climb < 1.0 && step_no as f32 * params.step >= params.climb_after;
+        if climb {
+            d = limit_climb(d, params.max_climb, prev);
+        }
         if free && (so <= 0.0 || step_no >= free_steps) {
             free = false;
         }
@@ -378,6 +415,9 @@ pub fn grow_one(
                     q -= nrm * sq;
                 }
             }
+        }
+        if climb {
+            q = p + limit_climb(q - p, params.max_climb, d);
         }
         let q = push_out(flow, q, params.head_clearance);
         let Some(so) = flow.grid.trilinear(&flow.sd_outer, q) else {
@@ -830,6 +870,40 @@ mod tests {
         let (pts, stop) = grow_one(&f, None, Vec3::new(r, 0.0, 0.0), Vec3::new(0.0, 0.95, -0.3), &params);
         assert_eq!(stop, Stop::MaxLength, "{} points", pts.len());
         assert!(pts.last().unwrap().z < -0.06);
+    }
+
+    #[test]
+    fn beyond_climb_after_no_step_climbs_even_where_the_outer_surface_slopes_up() {
+        // Flow down and to +x; the outer surface a plane facing down and +x (the underside of a
+        // hair mass) 4 mm from the root: the strand meets it at once and its projection onto the
+        // plane slides it up along it. With `max_climb` 0 no step beyond `climb_after` rises (the
+        // strand leaves the surface level and ends outside); with the rule off it climbs.
+        let root = Vec3::new(-0.08, 0.0, -0.2);
+        let n = Vec3::new(1.0, 0.0, -1.0).normalize();
+        let mut f = flow(|_| Vec3::new(1.0, 0.0, -0.3).normalize());
+        for i in 0..f.grid.len() {
+            f.sd_outer[i] = (f.grid.centre(i) - root - Vec3::X * 0.004).dot(n);
+        }
+        let rises = |params: &GrowParams| {
+            let (pts, _) = grow_one(&f, None, root, Vec3::new(1.0, 0.0, -0.3), params);
+            let mut arc = 0.0f32;
+            let mut rise = f32::MIN;
+            for w in pts.windows(2) {
+                if arc >= params.climb_after {
+                    rise = rise.max(w[1].z - w[0].z);
+                }
+                arc += w[0].distance(w[1]);
+            }
+            (rise, pts.len())
+        };
+        let params = GrowParams { trace_radius: 0.0, max_length: 0.1, ..GrowParams::default() };
+        let (rise, n_on) = rises(&params);
+        assert!(rise <= 1e-6, "a step beyond climb_after rose {rise} m ({n_on} points)");
+        let (rise, n_off) = rises(&GrowParams { max_climb: 1.0, ..params });
+        assert!(
+            rise > 0.0005,
+            "with the rule off the strand should climb the surface; largest rise {rise} m ({n_off} points)"
+        );
     }
 
     /// Flow straight down; an inward-facing wall of the raw mesh 2 cm behind (+y) the root, so that the
