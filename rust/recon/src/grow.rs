@@ -142,17 +142,19 @@ pub struct GrowParams {
     /// Gravity: beyond `climb_after` metres of arc, a step rises at most `max_climb` (the sine of
     /// its angle above the horizontal; 1: off), both the direction the field and the points give
     /// and the step that the outer surface's projection makes of it. Hair under gravity does not
-    /// climb once it has left the scalp, but the strands did: on the paper preset 10–14% of their
-    /// steps beyond 6 cm went up (the ground truth's: straight and wavy 0%, curly 1–9%, the
-    /// helices), nearly all of them where the outer surface's projection pushed them (the raw
-    /// mesh's surface pieces inside the hair), and a climbing step is one that matches the ground
-    /// truth only reversed. Measured at full size (`examples/init_stage bench_out/paper_STYLE_brown
+    /// climb once it has left the scalp, but the strands did: on the paper preset 3–6% (straight),
+    /// 10–11% (wavy) and 11–13% (curly) of their steps beyond 6 cm went up (the ground truth's:
+    /// straight and wavy 0%, curly 1–9%, the helices; our directed points: 0% below 6 cm from the
+    /// top), nearly all of them where the outer surface's projection pushed them (the raw mesh's
+    /// surface pieces inside the hair), and a climbing step is one that matches the ground truth
+    /// only reversed. Measured at full size (`examples/init_stage bench_out/paper_STYLE_brown
     /// DIR OUT children=50000 [max_climb=1]` on session 13's direction outputs; undirected /
     /// directed F1 at 2 mm/20°, off → on): straight 84.5 / 82.1 → 85.9 / 85.8, wavy 53.5 / 47.4 →
     /// 55.3 / 54.7, curly 51.9 / 40.8 → 49.1 / 44.5 (the curls' climbing steps matched reversed
     /// helices); test preset 56.9 / 53.7 → 60.0 / 60.0. Proxy (`children=10000 gt_every=5`),
     /// `climb_after` 1 / 3 / 6 cm: straight 77.9 / 78.3 / 78.4, wavy 39.9 / 39.7 / 39.4, curly
-    /// 28.8 / 29.3 / 29.6 (off: 77.2, 38.0, 31.2); `max_climb` 0.1 / 0.2 / 0.3 at 1 cm: wavy
+    /// 28.8 / 29.3 / 29.6 (off: 77.2, 38.0, 31.2; a first form of the rule, which kept a vertical
+    /// step vertical: curly 29.2 as it is now); `max_climb` 0.1 / 0.2 / 0.3 at 1 cm: wavy
     /// 39.9 / 38.5 / 36.8, curly 29.2 / – / 31.3. Clamping the direction alone, not the projected
     /// step, left 7–9% of the curly steps climbing.
     pub max_climb: f32,
