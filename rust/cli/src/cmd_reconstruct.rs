@@ -48,6 +48,10 @@ pub struct ReconstructArgs {
     /// Keep the initial strands: no strand optimization by differentiable rendering (DR).
     #[arg(long)]
     no_dr: bool,
+    /// Keep strand ends that some view sees where there is no hair (by default strands are cut at
+    /// the visual hull of the masks, the head hiding what lies behind it).
+    #[arg(long)]
+    no_hull_trim: bool,
     /// DR ablation: no guide stage (every child optimized on its own from the start).
     #[arg(long)]
     no_guide_opt: bool,
@@ -162,6 +166,7 @@ fn options(a: &ReconstructArgs) -> Result<ReconstructOptions, Box<dyn std::error
         strand_init: !a.no_strand_init,
         seed: a.seed,
         dr: !a.no_dr,
+        hull_trim: !a.no_hull_trim,
         dr_options: DrOptions {
             iterations_guides: a.dr_iters_guides,
             iterations_children: a.dr_iters_children,

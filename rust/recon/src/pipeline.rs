@@ -37,6 +37,7 @@ use thiserror::Error;
 use crate::direction::{global_directions, gravity_directions, DirectionParams};
 use crate::dr::{optimize as dr_optimize, DrError, DrOptions, DrTargets};
 use crate::grow::{grow_guides, interpolate_children, smooth_guides, straight_strands, GrowParams};
+use crate::hull::{HullError, HullParams, VisualHull};
 use crate::laplace::{solve_flow, LaplaceParams};
 use crate::metrics::{score_directions, score_points, PointIndex};
 use crate::orient2d::{
@@ -69,6 +70,17 @@ pub enum ReconError {
     UnknownStage(String),
     #[error("strand optimization (DR): {0}")]
     Dr(DrError),
+    #[error("the visual hull: {0}")]
+    Hull(HullError),
+}
+
+impl From<HullError> for ReconError {
+    fn from(e: HullError) -> Self {
+        match e {
+            HullError::Cancelled(c) => ReconError::Cancelled(c),
+            e => ReconError::Hull(e),
+        }
+    }
 }
 
 impl From<DrError> for ReconError {
@@ -143,6 +155,10 @@ pub struct ReconstructOptions {
     /// initial strands, as with `stop_after = Some(Stage::Init)`).
     pub dr: bool,
     pub dr_options: DrOptions,
+    /// Cut the strands where a view sees no hair ([`crate::hull`]): the children before DR, and the
+    /// guides and children after it; false keeps them whole (`--no-hull-trim`).
+    pub hull_trim: bool,
+    pub hull: HullParams,
 }
 
 impl Default for ReconstructOptions {
@@ -164,6 +180,8 @@ impl Default for ReconstructOptions {
             write_pictures: true,
             dr: true,
             dr_options: DrOptions::default(),
+            hull_trim: true,
+            hull: HullParams::default(),
         }
     }
 }
@@ -440,6 +458,26 @@ pub fn reconstruct(
         )
     };
     progress.check()?;
+    // The hull: the children are cut before DR; the guides, from which DR blends the children, stay
+    // whole until the end (so `--no-dr` gives the same files as the init of a DR run), and after DR
+    // both are cut.
+    let hull = if opts.hull_trim {
+        VisualHull::from_capture(capture, Some(&inner), opts.hull, "init", progress)?
+    } else {
+        None
+    };
+    if opts.hull_trim {
+        metrics.insert("hull_views".into(), json!(hull.as_ref().map_or(0, |h| h.num_views())));
+    }
+    let trim = |set: StrandSet, what: &str, metrics: &mut serde_json::Map<String, serde_json::Value>| match &hull {
+        Some(h) => {
+            let (set, stats) = h.trim(&set);
+            metrics.insert(format!("hull_trim_{what}"), serde_json::to_value(stats).unwrap_or_default());
+            set
+        }
+        None => set,
+    };
+    let children = trim(children, "init_strands", &mut metrics);
     let guides_path = out_dir.join("guides.hair");
     let strands_path = out_dir.join("strands.hair");
     times.push(("init".into(), t.elapsed().as_secs_f64()));
@@ -484,8 +522,10 @@ pub fn reconstruct(
     write_strands(&init_strands_path, &children)?;
     crate::dr::report::write_loss_csv(&loss_csv, &r.loss_curve)?;
     crate::dr::report::write_loss_png(&out_dir.join("loss.png"), &r.loss_curve)?;
-    write_strands(&guides_path, &r.guides)?;
-    write_strands(&strands_path, &r.children)?;
+    let r_guides = trim(r.guides, "dr_guides", &mut metrics);
+    let r_children = trim(r.children, "dr_strands", &mut metrics);
+    write_strands(&guides_path, &r_guides)?;
+    write_strands(&strands_path, &r_children)?;
     times.push(("dr".into(), t.elapsed().as_secs_f64()));
     note_peak_memory(&mut metrics, "dr");
     let steps = r.loss_curve.len();
@@ -516,8 +556,8 @@ pub fn reconstruct(
         metrics.insert("init_guides".into(), strand_metric(&guides, &g.strands));
         metrics.insert("init_strands".into(), strand_metric(&children, &g.strands));
         progress.update("metrics", 0.5, "scoring strands");
-        metrics.insert("dr_guides".into(), strand_metric(&r.guides, &g.strands));
-        metrics.insert("dr_strands".into(), strand_metric(&r.children, &g.strands));
+        metrics.insert("dr_guides".into(), strand_metric(&r_guides, &g.strands));
+        metrics.insert("dr_strands".into(), strand_metric(&r_children, &g.strands));
     }
     write_metrics(&metrics)?;
     progress.update("dr", 1.0, "");
