@@ -53,14 +53,16 @@ def cameras_of(collection: Optional[bpy.types.Collection]) -> list:
     return sorted((o for o in collection.all_objects if o.type == "CAMERA"), key=lambda o: o.name)
 
 
-def image_to_uint8(image: bpy.types.Image, channels: int = 3) -> np.ndarray:
-    """An image's pixels as uint8 (H, W, channels), top row first."""
+def image_to_uint8(image: bpy.types.Image, channels: int = 3, data: bool = False) -> np.ndarray:
+    """An image's pixels as uint8 (H, W, channels), top row first. Colour images with a float buffer
+    (16-bit PNG, EXR) are encoded to sRGB; ``data`` images (masks: coverage, not colour) are stored as
+    their values are."""
     w, h = image.size
     if w == 0 or h == 0:
         raise CaptureInputError(f"the image {image.name!r} ({image.filepath}) could not be read (size 0x0)")
     flat = np.empty(w * h * 4, dtype=np.float32)
     image.pixels.foreach_get(flat)
-    return pixels_to_uint8(flat, w, h, linear=image.is_float, channels=channels)
+    return pixels_to_uint8(flat, w, h, linear=image.is_float and not data, channels=channels)
 
 
 def load_image_file(path: Path, channels: int) -> np.ndarray:
@@ -68,7 +70,7 @@ def load_image_file(path: Path, channels: int) -> np.ndarray:
     img = bpy.data.images.load(str(path), check_existing=False)
     try:
         img.colorspace_settings.is_data = channels == 1
-        return image_to_uint8(img, channels)
+        return image_to_uint8(img, channels, data=channels == 1)
     except RuntimeError as e:
         raise CaptureInputError(f"cannot read the image {path}: {e}") from None
     finally:

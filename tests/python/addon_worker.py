@@ -10,8 +10,10 @@ import importlib.util
 import json
 import math
 import sys
+import struct as _struct
 import time
 import traceback
+import zlib as _zlib
 from pathlib import Path
 
 import bpy  # noqa: E402  (after BLENDER_USER_RESOURCES was set by the harness)
@@ -663,14 +665,29 @@ def task_bad_inputs(p):
     prepared("baseline", lambda o: None)
 
     photo = (np.arange(96 * 64 * 3) % 251).astype(np.uint8).reshape(96, 64, 3)
-    mask = np.zeros((96, 64), np.uint8)
-    mask[20:60, 10:50] = 255
+    # A soft mask in a 16-bit PNG (as render_synthetic.py writes them): Blender reads it into a float
+    # buffer, and the capture must keep its coverage, not encode it to sRGB (0.22 became 0.51).
+    mask16 = np.zeros((96, 64), np.uint16)
+    mask16[20:60, 10:50] = 65535
+    mask16[60:70, 10:50] = round(0.22 * 65535)
+    mask = (mask16 / 65535.0 * 255.0 + 0.5).astype(np.uint8)
+
+    def write_png16(path, a):
+        h, w = a.shape
+        raw = np.concatenate([np.zeros((h, 1), np.uint8), a.astype(">u2").view(np.uint8).reshape(h, 2 * w)], axis=1)
+
+        def chunk(tag, d):
+            return _struct.pack(">I", len(d)) + tag + d + _struct.pack(">I", _zlib.crc32(tag + d) & 0xFFFFFFFF)
+
+        ihdr = _struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0)
+        Path(path).write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", _zlib.compress(raw.tobytes()))
+                               + chunk(b"IEND", b""))
 
     def folders(o):
         (tmp / "photos").mkdir(exist_ok=True)
         (tmp / "masks").mkdir(exist_ok=True)
         capmod.write_png(tmp / "photos" / "cam0.png", photo)
-        capmod.write_png(tmp / "masks" / "cam0.png", mask)
+        write_png16(tmp / "masks" / "cam0.png", mask16)
         o["cam"].data.background_images.clear()
         s = bpy.context.scene.hairrecon
         s.photo_folder, s.mask_folder = str(tmp / "photos"), str(tmp / "masks")
