@@ -9,11 +9,13 @@
 //! Why: growth and DR both leave some strand ends outside the silhouettes (growth follows the raw
 //! mesh, which bulges past the masks where it misreads the hair; the silhouette loss pulls only on
 //! what it renders). Those points are wrong by construction and they are also the least precise:
-//! on the session-14 straight result, the 6.3% of points outside in some view (one pixel of margin)
-//! matched the ground truth at 2 mm/20° 41–52% of the time, the rest 87%. Cutting there
-//! (measured with a scratch tool on session 14's outputs, undirected F1 1 mm · 2 mm · 3 mm):
-//! straight after DR 62.9 · 87.1 · 94.0 → 64.0 · 88.1 · 94.7 (min_views 4; min_views 1: 63.2 · 87.7
-//! · 94.6), curly before DR 10.9 · 49.1 · 79.6 → 11.2 · 51.9 · 83.0 (min_views 1).
+//! on session 14's straight result, the 6.3% of points outside in some view (one pixel of margin)
+//! matched the ground truth at 2 mm/20° 41–52% of the time, the rest 87%. The whole method on the
+//! paper preset (`hairrecon reconstruct bench_out/paper_STYLE_brown --out OUT`, undirected F1 at
+//! 1 mm · 2 mm · 3 mm, session 14 → 15): straight after DR 62.9 · 87.1 · 94.0 → 63.3 · 87.8 · 94.8,
+//! before DR 85.9 → 86.8 at 2 mm; curly before DR 49.1 → 51.8, after 49.4 → 51.4; wavy before DR
+//! 55.3 → 55.9. Masks whose hair pixels are mostly partly covered (sparse hair, see
+//! [`HullParams::min_solid`]) are skipped: a silhouette needs opaque hair.
 
 use glam::{Vec2, Vec3};
 use hairrecon_core::capture::Capture;
