@@ -48,8 +48,8 @@ pub struct ReconstructArgs {
     /// Keep the initial strands: no strand optimization by differentiable rendering (DR).
     #[arg(long)]
     no_dr: bool,
-    /// Keep strand ends that some view sees where there is no hair (by default strands are cut at
-    /// the visual hull of the masks, the head hiding what lies behind it).
+    /// Keep the initial strands' ends that some view sees where there is no hair (by default they
+    /// are cut at the visual hull of the masks before DR, the head hiding what lies behind it).
     #[arg(long)]
     no_hull_trim: bool,
     /// DR ablation: no guide stage (every child optimized on its own from the start).
