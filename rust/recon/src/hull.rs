@@ -44,13 +44,17 @@ pub struct HullParams {
     /// (see [`VisualHull::from_capture`]; the paper-preset masks: 0.97–1.0, the sparse 2000-strand
     /// test preset: 0.22–0.25, where a threshold of 0.5 cut 99% of the points).
     pub min_solid: f32,
+    /// [`VisualHull::trim_checked`] refuses a cut that removes more than this share of the points:
+    /// then the masks or cameras disagree with the reconstruction (the paper preset's cuts: 11–20%; the
+    /// add-on's sRGB-encoded sparse masks of session 15: about half).
+    pub max_cut: f32,
     /// A point counts as behind the head when its depth exceeds the head's by more than this, metres.
     pub head_tolerance: f32,
 }
 
 impl Default for HullParams {
     fn default() -> Self {
-        Self { mask_threshold: 0.5, margin_px: 1, min_views: 1, min_solid: 0.5, head_tolerance: 0.002 }
+        Self { mask_threshold: 0.5, margin_px: 1, min_views: 1, min_solid: 0.5, max_cut: 0.5, head_tolerance: 0.002 }
     }
 }
 
@@ -83,7 +87,7 @@ pub struct TrimStats {
     pub cut: u64,
     /// Strands dropped because their first point past the root was outside.
     pub dropped: u64,
-    /// Points removed, and all points before.
+    /// Points removed (a dropped strand's root included), and all points before.
     pub points_removed: u64,
     pub points: u64,
 }
@@ -210,11 +214,12 @@ impl VisualHull {
         let mut points = Vec::with_capacity(strands.num_points());
         let mut counts = Vec::with_capacity(strands.num_strands());
         for (s, &end) in strands.iter().zip(&ends) {
-            stats.points_removed += (s.len() - end) as u64;
             if end < 2 {
                 stats.dropped += 1;
+                stats.points_removed += s.len() as u64;
                 continue;
             }
+            stats.points_removed += (s.len() - end) as u64;
             if end < s.len() {
                 stats.cut += 1;
             }
@@ -223,6 +228,18 @@ impl VisualHull {
         }
         let set = StrandSet::new(points, counts).unwrap_or_else(|_| StrandSet::empty());
         (set, stats)
+    }
+}
+
+impl VisualHull {
+    /// [`VisualHull::trim`], or `Err` with its statistics when it would remove more than `max_cut` of
+    /// the points (the strands are then best kept whole, and the user told).
+    pub fn trim_checked(&self, strands: &StrandSet) -> Result<(StrandSet, TrimStats), TrimStats> {
+        let (set, stats) = self.trim(strands);
+        if stats.points_removed as f64 > self.params.max_cut as f64 * stats.points as f64 {
+            return Err(stats);
+        }
+        Ok((set, stats))
     }
 }
 
@@ -311,6 +328,18 @@ mod tests {
         assert!(!solid(&sparse, 0.5));
         assert!(solid(&filled, 0.5));
         assert!(!solid(&[0.0; 10], 0.5), "no hair at all says nothing");
+    }
+
+    #[test]
+    fn a_cut_of_more_than_max_cut_is_refused() {
+        let hull = VisualHull::new(vec![(camera(), mask_left_of(20), None)], HullParams::default()).unwrap();
+        // Half of each strand's points outside: 2 of 4 removed is allowed at 0.5, 3 of 4 is not.
+        let half: Vec<Vec3> = [-0.1, -0.05, 0.2, 0.3].iter().map(|&x| Vec3::new(x, 0.0, 0.0)).collect();
+        let most: Vec<Vec3> = [-0.1, 0.2, 0.25, 0.3].iter().map(|&x| Vec3::new(x, 0.0, 0.0)).collect();
+        let ok = hull.trim_checked(&StrandSet::new(half, vec![4]).unwrap()).unwrap();
+        assert_eq!(ok.0.num_points(), 2);
+        let err = hull.trim_checked(&StrandSet::new(most, vec![4]).unwrap()).unwrap_err();
+        assert_eq!((err.points_removed, err.dropped), (4, 1), "the strand would be dropped whole");
     }
 
     #[test]

@@ -471,11 +471,21 @@ pub fn reconstruct(
     if opts.hull_trim {
         metrics.insert("hull_views".into(), json!(hull.as_ref().map_or(0, |h| h.num_views())));
     }
-    let children = match &hull {
-        Some(h) => {
-            let (set, stats) = h.trim(&children);
+    let children = match hull.as_ref().map(|h| h.trim_checked(&children)) {
+        Some(Ok((set, stats))) => {
             metrics.insert("hull_trim_init_strands".into(), serde_json::to_value(stats).unwrap_or_default());
             set
+        }
+        Some(Err(stats)) => {
+            let msg = format!(
+                "the visual hull would cut {:.0}% of the strand points: the masks or the cameras disagree \
+                 with the reconstruction, so the strands are kept whole (check the masks; --no-hull-trim \
+                 silences this)",
+                100.0 * stats.points_removed as f64 / stats.points.max(1) as f64
+            );
+            progress.update("init", 1.0, &msg);
+            metrics.insert("hull_warning".into(), json!(msg));
+            children
         }
         None => children,
     };
