@@ -99,7 +99,8 @@ pub struct VisualHull {
     params: HullParams,
 }
 
-/// The maximum (`max = true`) or minimum of `v` over a square of `r` pixels each way.
+/// `v` reduced by `pick` (e.g. `|` or `f32::min`) over a square of `r` pixels each way, as a
+/// row pass then a column pass.
 fn dilate<T: Copy + Send + Sync>(v: &[T], w: usize, h: usize, r: usize, pick: impl Fn(T, T) -> T + Sync) -> Vec<T> {
     if r == 0 {
         return v.to_vec();

@@ -464,13 +464,12 @@ pub fn reconstruct(
     // outside the masks still matching thin hair there (examples/hull_check on examples/dr_on_capture's
     // output, session 15).
     let hull = if opts.hull_trim {
-        VisualHull::from_capture(capture, Some(&inner), opts.hull, "init", progress)?
+        let hull = VisualHull::from_capture(capture, Some(&inner), opts.hull, "init", progress)?;
+        metrics.insert("hull_views".into(), json!(hull.as_ref().map_or(0, |h| h.num_views())));
+        hull
     } else {
         None
     };
-    if opts.hull_trim {
-        metrics.insert("hull_views".into(), json!(hull.as_ref().map_or(0, |h| h.num_views())));
-    }
     let children = match hull.as_ref().map(|h| h.trim_checked(&children)) {
         Some(Ok((set, stats))) => {
             metrics.insert("hull_trim_init_strands".into(), serde_json::to_value(stats).unwrap_or_default());
