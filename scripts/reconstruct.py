@@ -50,6 +50,8 @@ def parse_args(argv):
                     help="keep the grown strands: no optimization by differentiable rendering (DR)")
     ap.add_argument("--dr-iters-guides", type=int, help="DR steps on the guides")
     ap.add_argument("--dr-iters-children", type=int, help="DR steps on every strand after the guides")
+    ap.add_argument("--no-hull-trim", action="store_true",
+                    help="keep the grown strands whole where a photo sees them outside its hair mask")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--stop-after", help="stop the pipeline after this stage")
     ap.add_argument("--render", type=Path, help="also render the result with Cycles (CPU) to this PNG")
@@ -132,6 +134,8 @@ def apply_overrides(bpy, a):
             setattr(s, k, getattr(a, k))
     if a.no_dr:
         s.dr = False
+    if a.no_hull_trim:
+        s.hull_trim = False
     if a.seed is not None:
         s.seed = a.seed
     if a.stop_after is not None:

@@ -87,6 +87,9 @@ class HairreconSettings(bpy.types.PropertyGroup):
     dr_iters_children: IntProperty(name="Strand Steps", default=20, min=0, soft_max=2000, update=_to_custom,
                                    description="Optimization steps on every strand after the guides")
     seed: IntProperty(name="Seed", default=0, min=0)
+    hull_trim: BoolProperty(name="Cut at Visual Hull", default=True,
+                            description="Before optimizing, cut each grown strand where a photo sees it outside its "
+                                        "hair mask (and not behind the head); off keeps the strands whole")
     stop_after: StringProperty(
         name="Stop After",
         description="Advanced: stop the pipeline after this stage: orient2d, orient3d, direction, init (empty = run it all)",

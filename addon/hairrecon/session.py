@@ -143,6 +143,8 @@ class Session:
             options["dr_iters_children"] = int(s.dr_iters_children)
         elif s.dr:
             log("this hairrecon library has no strand optimization (DR); the grown strands are the result")
+        if _accepts(getattr(hr, "Reconstruction", None), "hull_trim"):
+            options["hull_trim"] = bool(s.hull_trim)
         session = cls(capture_dir, out_dir, keep, options, surface, group)
         session.root = root
         return session

@@ -71,6 +71,7 @@ class HAIRRECON_PT_advanced(bpy.types.Panel):
         layout.use_property_split = True
         s = context.scene.hairrecon
         layout.prop(s, "seed")
+        layout.prop(s, "hull_trim")
         layout.prop(s, "stop_after")
 
 

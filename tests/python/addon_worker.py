@@ -457,6 +457,13 @@ def task_pipeline(p):
         if err:
             break
     out["runs"] = runs
+    # the visual-hull switch, from the panel's setting to the module's keyword (the test capture's
+    # masks are see-through, so the hull is built and skipped: hull_views 0; off: no hull at all)
+    out["hull_switch"] = {"panel_default": bool(s.hull_trim)}
+    for flag in (True, False):
+        r = hairrecon.reconstruct(p["capture"], str(Path(p["workdir"]) / f"hull_{flag}"), guides=64, children=400,
+                                  stop_after="init", hull_trim=flag)
+        out["hull_switch"][str(flag)] = {k: v for k, v in r["metrics"].items() if k.startswith("hull")}
     if runs and not runs[-1]["error"]:
         hair = [o for o in new_result_objects(out["import"]["snapshot"]) if o.type == "CURVES"]
         children = [o for o in hair if not o.name.endswith("Guides")]

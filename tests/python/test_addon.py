@@ -265,6 +265,15 @@ def test_reconstruct_adds_hair_attached_to_the_scalp(pipeline):
         assert c["uv_back_to_root_max_mm"] < 1.0
 
 
+def test_hull_switch_reaches_the_pipeline(pipeline):
+    h = pipeline["hull_switch"]
+    assert h["panel_default"] is True
+    # on: the hull is built (its views counted: none here, the sparse capture's masks being see-through)
+    assert h["True"] == {"hull_views": 0}, h
+    # off: no hull at all
+    assert h["False"] == {}, h
+
+
 def test_blenders_attach_node_and_surface_deform_use_the_attachment(pipeline):
     a = pipeline["attach_node"]
     # Blender's "Attach Hair Curves to Surface", sampling the UV at each root itself, finds ours

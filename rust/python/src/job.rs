@@ -34,11 +34,22 @@ struct Args<'a> {
     dr: bool,
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
+    hull_trim: bool,
 }
 
 fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
-    let Args { guides, children, stop_after, seed, global_opt, strand_init, dr, dr_iters_guides, dr_iters_children } =
-        a;
+    let Args {
+        guides,
+        children,
+        stop_after,
+        seed,
+        global_opt,
+        strand_init,
+        dr,
+        dr_iters_guides,
+        dr_iters_children,
+        hull_trim,
+    } = a;
     let stop_after = match stop_after {
         None => None,
         Some(s) => Some(s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("stop_after: {e}")))?),
@@ -62,6 +73,7 @@ fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
         strand_init,
         dr,
         dr_options,
+        hull_trim,
         ..Default::default()
     })
 }
@@ -109,7 +121,8 @@ fn run_error_to_py(e: RunError) -> PyErr {
 
 /// A reconstruction running in the background. `dr=False` keeps the initial strands (no
 /// optimization by differentiable rendering); `dr_iters_guides` / `dr_iters_children` set the DR
-/// steps (None: the library's defaults).
+/// steps (None: the library's defaults); `hull_trim=False` keeps the initial strands' ends that a
+/// view sees where its mask has no hair (by default they are cut at the visual hull before DR).
 ///
 /// ```python
 /// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000, dr=True)
@@ -133,7 +146,7 @@ pub struct Reconstruction {
 #[pymethods]
 impl Reconstruction {
     #[new]
-    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None))]
+    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true))]
     fn new(
         capture_dir: PathBuf,
         out_dir: PathBuf,
@@ -146,6 +159,7 @@ impl Reconstruction {
         dr: bool,
         dr_iters_guides: Option<usize>,
         dr_iters_children: Option<usize>,
+        hull_trim: bool,
     ) -> PyResult<Self> {
         let args = Args {
             guides,
@@ -157,6 +171,7 @@ impl Reconstruction {
             dr,
             dr_iters_guides,
             dr_iters_children,
+            hull_trim,
         };
         Ok(Self {
             capture_dir,
@@ -232,7 +247,7 @@ impl Reconstruction {
 /// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
 /// while Rust works). Returns the same dict as `Reconstruction.result()`.
 #[pyfunction]
-#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None))]
+#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true))]
 fn reconstruct<'py>(
     py: Python<'py>,
     capture_dir: PathBuf,
@@ -246,6 +261,7 @@ fn reconstruct<'py>(
     dr: bool,
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
+    hull_trim: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(Args {
         guides,
@@ -257,6 +273,7 @@ fn reconstruct<'py>(
         dr,
         dr_iters_guides,
         dr_iters_children,
+        hull_trim,
     })?;
     let progress = SharedProgress::new();
     let out = py.allow_threads(|| run(&capture_dir, &out_dir, &opts, &progress).map_err(run_error_to_py))?;
