@@ -464,6 +464,15 @@ def task_pipeline(p):
         r = hairrecon.reconstruct(p["capture"], str(Path(p["workdir"]) / f"hull_{flag}"), guides=64, children=400,
                                   stop_after="init", hull_trim=flag)
         out["hull_switch"][str(flag)] = {k: v for k, v in r["metrics"].items() if k.startswith("hull")}
+    # and the panel's setting reaches the keyword the add-on passes
+    session_mod = import_module(pkg.__name__ + ".session")
+    for flag in (False, True):
+        s.hull_trim = flag
+        sess = session_mod.Session.prepare(bpy.context)
+        try:
+            out["hull_switch"][f"session_{flag}"] = sess.options.get("hull_trim")
+        finally:
+            sess.cleanup()
     if runs and not runs[-1]["error"]:
         hair = [o for o in new_result_objects(out["import"]["snapshot"]) if o.type == "CURVES"]
         children = [o for o in hair if not o.name.endswith("Guides")]

@@ -272,6 +272,8 @@ def test_hull_switch_reaches_the_pipeline(pipeline):
     assert h["True"] == {"hull_views": 0}, h
     # off: no hull at all
     assert h["False"] == {}, h
+    # the panel's setting is what the add-on passes to the library
+    assert h["session_False"] is False and h["session_True"] is True, h
 
 
 def test_blenders_attach_node_and_surface_deform_use_the_attachment(pipeline):
