@@ -10,16 +10,16 @@ import importlib.util
 import json
 import math
 import sys
-import struct as _struct
 import time
 import traceback
-import zlib as _zlib
 from pathlib import Path
 
 import bpy  # noqa: E402  (after BLENDER_USER_RESOURCES was set by the harness)
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "scripts"))
+import _hairio as hio  # noqa: E402  (the repository's PNG writer, 8- and 16-bit)
 
 
 def load_core_camera():
@@ -688,22 +688,11 @@ def task_bad_inputs(p):
     mask16[60:70, 10:50] = round(0.22 * 65535)
     mask = (mask16 / 65535.0 * 255.0 + 0.5).astype(np.uint8)
 
-    def write_png16(path, a):
-        h, w = a.shape
-        raw = np.concatenate([np.zeros((h, 1), np.uint8), a.astype(">u2").view(np.uint8).reshape(h, 2 * w)], axis=1)
-
-        def chunk(tag, d):
-            return _struct.pack(">I", len(d)) + tag + d + _struct.pack(">I", _zlib.crc32(tag + d) & 0xFFFFFFFF)
-
-        ihdr = _struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0)
-        Path(path).write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", _zlib.compress(raw.tobytes()))
-                               + chunk(b"IEND", b""))
-
     def folders(o):
         (tmp / "photos").mkdir(exist_ok=True)
         (tmp / "masks").mkdir(exist_ok=True)
         capmod.write_png(tmp / "photos" / "cam0.png", photo)
-        write_png16(tmp / "masks" / "cam0.png", mask16)
+        hio.write_png(tmp / "masks" / "cam0.png", mask16)
         o["cam"].data.background_images.clear()
         s = bpy.context.scene.hairrecon
         s.photo_folder, s.mask_folder = str(tmp / "photos"), str(tmp / "masks")

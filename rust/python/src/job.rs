@@ -38,42 +38,30 @@ struct Args<'a> {
 }
 
 fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
-    let Args {
-        guides,
-        children,
-        stop_after,
-        seed,
-        global_opt,
-        strand_init,
-        dr,
-        dr_iters_guides,
-        dr_iters_children,
-        hull_trim,
-    } = a;
-    let stop_after = match stop_after {
+    let stop_after = match a.stop_after {
         None => None,
         Some(s) => Some(s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("stop_after: {e}")))?),
     };
-    if guides == 0 || children == 0 {
+    if a.guides == 0 || a.children == 0 {
         return Err(HairreconError::new_err("guides and children must be at least 1"));
     }
     let d = DrOptions::default();
     let dr_options = DrOptions {
-        iterations_guides: dr_iters_guides.unwrap_or(d.iterations_guides),
-        iterations_children: dr_iters_children.unwrap_or(d.iterations_children),
-        seed,
+        iterations_guides: a.dr_iters_guides.unwrap_or(d.iterations_guides),
+        iterations_children: a.dr_iters_children.unwrap_or(d.iterations_children),
+        seed: a.seed,
         ..d
     };
     Ok(ReconstructOptions {
-        guides,
-        children,
+        guides: a.guides,
+        children: a.children,
         stop_after,
-        seed,
-        global_opt,
-        strand_init,
-        dr,
+        seed: a.seed,
+        global_opt: a.global_opt,
+        strand_init: a.strand_init,
+        dr: a.dr,
         dr_options,
-        hull_trim,
+        hull_trim: a.hull_trim,
         ..Default::default()
     })
 }
