@@ -26,14 +26,8 @@ use hairrecon_recon::grow::{grow_guides, interpolate_children, GrowParams};
 use hairrecon_recon::laplace::FlowField;
 use hairrecon_recon::metrics::{sample_strands, PointIndex};
 use hairrecon_recon::pipeline::load_points;
-use hairrecon_recon::progress::Progress;
+use hairrecon_recon::progress::NoProgress;
 use hairrecon_recon::roots::{sample_roots, Scalp};
-
-struct Quiet;
-
-impl Progress for Quiet {
-    fn update(&self, _stage: &str, _fraction: f32, _message: &str) {}
-}
 
 fn env(k: &str, d: usize) -> usize {
     std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d)
@@ -121,17 +115,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // `file=PATH`: guides read from a .hair file (one per guide root, in the roots' order).
         let guides = match args[3 + vi].strip_prefix("file=") {
             Some(path) => read_strands(path)?,
-            None => grow_guides(&flow, Some(&trace), &groots, gp, &Quiet)?.0,
+            None => grow_guides(&flow, Some(&trace), &groots, gp, &NoProgress)?.0,
         };
         if guides.num_strands() != groots.len() {
             return Err(format!("variant {vi}: {} guides for {} roots", guides.num_strands(), groots.len()).into());
         }
         let mean_length =
             (0..guides.num_strands()).map(|g| guides.strand_length(g) as f64).sum::<f64>() / groots.len() as f64;
-        let strands: Vec<Vec<Vec3>> = guides.iter().map(|s| s.to_vec()).collect();
-        let sup: Vec<f32> = strands.par_iter().map(|s| matched_share(s, &trace)).collect();
-        let tru: Vec<f32> = strands.par_iter().map(|s| matched_share(s, &gt_index)).collect();
-        let children = interpolate_children(&guides, &croots, Some(&flow), gp, &Quiet)?;
+        let share = |index: &PointIndex| -> Vec<f32> {
+            (0..guides.num_strands()).into_par_iter().map(|g| matched_share(guides.strand(g), index)).collect()
+        };
+        let (sup, tru) = (share(&trace), share(&gt_index));
+        let children = interpolate_children(&guides, &croots, Some(&flow), gp, &NoProgress)?;
         let (p, r, gap) = f1(&children)?;
         let f = 2.0 * p * r / (p + r).max(1e-9);
         println!(
@@ -161,7 +156,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             counts.push(s.len() as u32);
         }
         let guides = StrandSet::new(pts, counts)?;
-        let children = interpolate_children(&guides, &croots, Some(&flow), &variants[0], &Quiet)?;
+        let children = interpolate_children(&guides, &croots, Some(&flow), &variants[0], &NoProgress)?;
         let (p, r, gap) = f1(&children)?;
         let f = 2.0 * p * r / (p + r).max(1e-9);
         println!("picked by {name}: {picks:?}; children P/R/F1 {p:.1} / {r:.1} / {f:.1} (directed gap {gap:.1})");

@@ -26,14 +26,8 @@ use hairrecon_recon::grow::{grow_guides, grow_one, interpolate_children, smooth_
 use hairrecon_recon::laplace::{solve_flow, LaplaceParams};
 use hairrecon_recon::metrics::PointIndex;
 use hairrecon_recon::pipeline::load_points;
-use hairrecon_recon::progress::Progress;
+use hairrecon_recon::progress::NoProgress;
 use hairrecon_recon::roots::{sample_roots, scalp_point, Scalp};
-
-struct Quiet;
-
-impl Progress for Quiet {
-    fn update(&self, _stage: &str, _fraction: f32, _message: &str) {}
-}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -111,13 +105,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("sd of low points (n {}): q10 {} q50 {} q90 {}", sd.len(), q(0.1), q(0.5), q(0.9));
     }
     let t = Instant::now();
-    let (flow, lstats) = solve_flow(&raw, &inner, &scalp, &points, &lp, &Quiet)?;
+    let (flow, lstats) = solve_flow(&raw, &inner, &scalp, &points, &lp, &NoProgress)?;
     let t_flow = t.elapsed().as_secs_f64();
     let groots = sample_roots(&scalp, guides_n, 0)?;
     let croots = sample_roots(&scalp, children_n, 1)?;
     let t = Instant::now();
     let trace = (gp.trace_radius > 0.0).then(|| PointIndex::new(points.positions.clone(), points.directions.clone()));
-    let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &groots, &gp, &Quiet)?;
+    let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &groots, &gp, &NoProgress)?;
     let (guides, sstats) = smooth_guides(&guides, trace.as_ref(), Some(&flow), &gp);
     println!("smooth: {sstats:?}");
     let gt = capture.gt_strands.as_ref().map(read_strands).transpose()?;
@@ -138,7 +132,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         None => guides,
     };
-    let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &Quiet)?;
+    let children = interpolate_children(&guides, &croots, Some(&flow), &gp, &NoProgress)?;
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
     // Where the guides stop, by reason: a histogram of the tip height (10 cm bins from -0.5 m).

@@ -24,15 +24,9 @@ use hairrecon_recon::metrics::{score_points, PointIndex};
 use hairrecon_recon::orient2d::{GrayImage, OrientationMap};
 use hairrecon_recon::pipeline::load_orient2d;
 use hairrecon_recon::points3d::{estimate, LineMvsParams, MvsView};
-use hairrecon_recon::progress::Progress;
+use hairrecon_recon::progress::NoProgress;
 use hairrecon_recon::raw_mesh::load_depth_views;
 use rayon::prelude::*;
-
-struct Quiet;
-
-impl Progress for Quiet {
-    fn update(&self, _stage: &str, _fraction: f32, _message: &str) {}
-}
 
 const DIST: f32 = 0.002;
 const SURFACE_BAND: f32 = 0.003;
@@ -119,7 +113,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let views = MvsView::for_capture(&capture, &maps, &images);
 
     let t = Instant::now();
-    let pts = estimate(&views, &raw, &p, &Quiet)?;
+    let pts = estimate(&views, &raw, &p, &NoProgress)?;
     let secs = t.elapsed().as_secs_f64();
     if let Some(path) = &save {
         pts.save_ply(path)?;
