@@ -9,7 +9,7 @@
 //! `cargo run --release -p hairrecon-recon --example guide_select -- CAPTURE DIR OUT VARIANT...`
 //! where DIR holds `points_directed.ply` and `flow.bin`, and each VARIANT is `-` (the defaults) or
 //! comma-separated `key=value` of `GrowParams` (`trace_weight`, `trace_radius`, `trace_pull`,
-//! `trace_min_cos`, `trace_power`, `max_climb`, `climb_after`, `max_turn_deg`, `step`).
+//! `trace_min_cos`, `trace_power`, `trace_trumps`, `max_climb`, `climb_after`, `max_turn_deg`, `step`).
 //! A VARIANT `file=PATH` reads the guides from a .hair file instead (one per root, in order).
 //! Environment: `CHILDREN` (10000), `GT_EVERY` (5), `GUIDES` (2000).
 
@@ -48,6 +48,7 @@ fn variant(spec: &str) -> Result<GrowParams, Box<dyn std::error::Error>> {
             "trace_min_cos" => gp.trace_min_cos = f,
             "trace_power" => gp.trace_power = f,
             "max_climb" => gp.max_climb = f,
+            "trace_trumps" => gp.trace_trumps = f,
             "climb_after" => gp.climb_after = f,
             "max_turn_deg" => gp.max_turn = f.to_radians(),
             "step" => gp.step = f,

@@ -78,6 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "smooth_sigma" => gp.smooth_sigma = f,
             "root_gap" => gp.root_gap = f,
             "max_climb" => gp.max_climb = f,
+            "trace_trumps" => gp.trace_trumps = f,
             "climb_after" => gp.climb_after = f,
             "smooth_lo" => gp.smooth_angles_deg[0] = f,
             "smooth_hi" => gp.smooth_angles_deg[1] = f,

@@ -159,6 +159,21 @@ pub struct GrowParams {
     /// step, left 7–9% of the curly steps climbing.
     pub max_climb: f32,
     pub climb_after: f32,
+    /// Points trump the field: where the traced points' weight (see [`GrowParams::trace_radius`])
+    /// is at least this, the strand follows them alone, with no field blend, no slide along the
+    /// outer surface (it may end up to 1 cm outside it) and no climb limit; 0 (the default): off.
+    /// Through ground-truth points everywhere (`examples/oracle_points … all`) the growth's rules
+    /// cost most of the guides' precision on curly (`examples/guide_select`, pooled undirected
+    /// precision at 2 mm/20°: defaults 63.9%, `trace_trumps=0.3` with `trace_pull=0,trace_power=4,
+    /// trace_min_cos=0.5,trace_radius=0.002,step=0.001` 77.1%, `scripts/trace_points.py`, the
+    /// points alone, 87.6% over shorter strands). Through our own points (session 15's curly run)
+    /// `trace_trumps=1,max_climb=1` makes the guides 51.0 → 62.9% precise, but they keep to the
+    /// visible surface (87% of their points within 2 mm of a directed point) and the children
+    /// lose recall (`examples/init_stage … children=50000`, undirected P / R / F1 at 2 mm/20°:
+    /// 43.3 / 56.6 / 49.1 → 50.7 / 42.8 / 46.4). Half the children from each set (the field's
+    /// cover the volume, the traced ones the visible curls) score 51.8 with `loop_window=0`, and
+    /// wavy 55.3 → 57.0, but directed F1 falls (curly 44.5 → 43.1): the README's session-18 notes.
+    pub trace_trumps: f32,
 }
 
 impl Default for GrowParams {
@@ -188,6 +203,7 @@ impl Default for GrowParams {
             root_gap: 0.15,
             max_climb: 0.0,
             climb_after: 0.03,
+            trace_trumps: 0.0,
         }
     }
 }
@@ -356,7 +372,20 @@ pub fn grow_one(
             }
             None => None,
         };
+        // Points trump the field (experiment): follow them alone where they are dense enough.
+        let trumped = match trace.filter(|_| params.trace_trumps > 0.0 && step_no >= 3 && escaping == 0) {
+            Some(t) => match traced(t, p, prev, params) {
+                Some((td, w)) if td != Vec3::ZERO && w >= params.trace_trumps => Some(td),
+                _ => None,
+            },
+            None => None,
+        };
+        let d = if trumped.is_some() { trumped } else { d };
         let d = match d {
+            Some(d) if trumped.is_some() => {
+                gap = 0;
+                d
+            }
             Some(d) if escaping > 0 => {
                 gap = 0;
                 escaping -= 1;
@@ -391,7 +420,7 @@ pub fn grow_one(
         };
         // A strand bends by at most `max_turn` per step (a 6.5 mm curl turns 18° per 2 mm step).
         let mut d = limit_turn(prev, d, params.max_turn);
-        let climb = params.max_climb < 1.0 && step_no as f32 * params.step >= params.climb_after;
+        let climb = trumped.is_none() && params.max_climb < 1.0 && step_no as f32 * params.step >= params.climb_after;
         if climb {
             d = limit_climb(d, params.max_climb, prev);
         }
@@ -399,7 +428,7 @@ pub fn grow_one(
             free = false;
         }
         let mut nrm = Vec3::ZERO;
-        if !free && so > -0.5 * flow.grid.voxel {
+        if !free && trumped.is_none() && so > -0.5 * flow.grid.voxel {
             nrm = gradient(flow, &flow.sd_outer, p);
             let c = d.dot(nrm);
             if params.exit_cos < 1.0 && c > params.exit_cos && step_no as f32 * params.step >= params.exit_after {
@@ -426,7 +455,7 @@ pub fn grow_one(
             stop = Stop::Grid;
             break;
         };
-        if so > params.outer_margin && !free {
+        if so > params.outer_margin.max(if trumped.is_some() { 0.01 } else { 0.0 }) && !free {
             stop = Stop::Outside;
             break;
         }
@@ -1000,6 +1029,31 @@ mod tests {
         let (a, b) = (off_helix(&with), off_helix(&without));
         assert!(a < 0.001, "traced strand {a} m from the helix on average");
         assert!(b > 0.003, "untraced strand {b} m from the helix on average");
+    }
+
+    #[test]
+    fn where_points_trump_a_strand_follows_them_out_through_the_outer_surface() {
+        // The field points straight down; the outer surface is the plane x = 5 mm; directed points
+        // fill the plane y = 0, all pointing 45° outward and down. By default the strand blends
+        // the field with them and slides along the surface; where the points trump, it follows
+        // them out through it (up to 1 cm). Points whose signs run against the strand never trump.
+        let mut f = flow(|_| Vec3::NEG_Z);
+        for i in 0..f.grid.len() {
+            f.sd_outer[i] = f.grid.centre(i).x - 0.005;
+        }
+        let d = Vec3::new(1.0, 0.0, -1.0).normalize();
+        let plane: Vec<Vec3> =
+            (0..1600).map(|k| Vec3::new(-0.01 + (k % 40) as f32 * 0.001, 0.0, -((k / 40) as f32) * 0.001)).collect();
+        let along = PointIndex::new(plane.clone(), vec![d; plane.len()]);
+        let against = PointIndex::new(plane, vec![-d; 1600]);
+        let base = GrowParams { max_length: 0.03, max_climb: 1.0, ..GrowParams::default() };
+        let trump = GrowParams { trace_trumps: 0.5, ..base };
+        let tip_x =
+            |index: &PointIndex, p: &GrowParams| grow_one(&f, Some(index), Vec3::ZERO, d, p).0.last().unwrap().x;
+        let (x_base, x_trump, x_against) = (tip_x(&along, &base), tip_x(&along, &trump), tip_x(&against, &trump));
+        assert!(x_base < 0.0065, "default: tip {x_base} m out, should slide along x = 5 mm");
+        assert!(x_trump > 0.012, "trumped: tip {x_trump} m out, should follow the points out of the surface");
+        assert!(x_against < 0.0065, "points against the strand: tip {x_against} m out");
     }
 
     #[test]
