@@ -7,7 +7,9 @@ its files here:
 - PNG (write: 8- or 16-bit, grey, RGB or RGBA; read: the same, non-interlaced, for the tests);
 - OpenEXR scanline images with float32 channels (write: uncompressed; read: uncompressed, ZIPS and
   ZIP compression, which covers what Blender writes with ``exr_codec`` NONE/ZIP/ZIPS);
-- PLY triangle meshes (read: ASCII and binary little/big endian; write: binary little endian).
+- PLY triangle meshes (read: ASCII and binary little/big endian; write: binary little endian);
+- hairrecon's oriented points (``points3d.ply``, ``points_directed.ply``: read);
+- strands resampled by arc length.
 
 Nothing here imports bpy, so the tests use it too.
 """
@@ -92,6 +94,16 @@ def strand_tangents(points: np.ndarray, counts: np.ndarray) -> np.ndarray:
     d = points[nxt] - points[prv]
     n = np.linalg.norm(d, axis=1, keepdims=True)
     return d / np.maximum(n, 1e-12)
+
+
+def resample_by_arc(strand: np.ndarray, step: float) -> tuple[np.ndarray, float]:
+    """One strand's points every ``step`` of arc from the root (linear between its points), and its
+    arc length; no samples when the strand has fewer than two points."""
+    if len(strand) < 2:
+        return np.zeros((0, 3)), 0.0
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(strand, axis=0), axis=1))])
+    t = np.arange(0.0, arc[-1], step)
+    return np.stack([np.interp(t, arc, strand[:, k]) for k in range(3)], axis=1), float(arc[-1])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -393,6 +405,26 @@ def read_ply(path) -> tuple[np.ndarray, np.ndarray]:
         tris = [[f[0], f[k], f[k + 1]] for f in faces for k in range(1, len(f) - 1)]
         tris = np.array(tris, np.int64).reshape(-1, 3)
     return verts, tris.astype(np.int64)
+
+
+def read_oriented_points(path) -> tuple[np.ndarray, np.ndarray]:
+    """hairrecon's oriented 3D points (binary little-endian PLY with float x y z nx ny nz
+    confidence) as (positions float64 (N, 3), unit directions float64 (N, 3))."""
+    data = Path(path).read_bytes()
+    try:
+        end = data.index(b"end_header\n") + len(b"end_header\n")
+    except ValueError:
+        raise ValueError(f"{path}: no end_header; expected hairrecon's oriented points (binary PLY)") from None
+    lines = data[:end].decode("ascii", "replace").splitlines()
+    props = [ln.split()[1:] for ln in lines if ln.startswith("property")]
+    want = [["float", a] for a in ("x", "y", "z", "nx", "ny", "nz", "confidence")]
+    if "format binary_little_endian 1.0" not in lines or props != want:
+        raise ValueError(
+            f"{path}: expected hairrecon's oriented points (binary little-endian x y z nx ny nz confidence)"
+        )
+    n = int(next(ln for ln in lines if ln.startswith("element vertex")).split()[2])
+    a = np.frombuffer(data, "<f4", n * 7, end).reshape(n, 7)
+    return a[:, :3].astype(np.float64), a[:, 3:6].astype(np.float64)
 
 
 def write_ply(path, vertices: np.ndarray, triangles: np.ndarray) -> None:

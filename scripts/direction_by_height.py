@@ -9,28 +9,25 @@ test environment).
 """
 
 import sys
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 import hairrecon
 
-
-def read_points(path):
-    raw = open(path, "rb").read()
-    i = raw.index(b"end_header\n") + len(b"end_header\n")
-    header = raw[:i].decode("ascii", "replace")
-    if "binary_little_endian" not in header or header.count("property float") != 7:
-        sys.exit(f"{path}: expected hairrecon's oriented points (binary PLY, x y z nx ny nz confidence)")
-    a = np.frombuffer(raw[i:], dtype="<f4").reshape(-1, 7)
-    return a[:, :3].astype(np.float64), a[:, 3:6].astype(np.float64)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _hairio  # noqa: E402
 
 
 def main():
     if len(sys.argv) < 3:
         sys.exit(__doc__)
     band = float(sys.argv[3]) if len(sys.argv) > 3 else 0.03
-    pos, tan = read_points(sys.argv[1])
+    try:
+        pos, tan = _hairio.read_oriented_points(sys.argv[1])
+    except ValueError as e:
+        sys.exit(str(e))
     g, cnt = hairrecon.read_strands(sys.argv[2])
     g = np.asarray(g, np.float64)
     off = np.concatenate([[0], np.cumsum(np.asarray(cnt).astype(np.int64))])

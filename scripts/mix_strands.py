@@ -29,8 +29,8 @@ def main(argv):
     b, bc = _hairio.read_hair(b_path)
     if len(ac) != len(bc):
         raise SystemExit(f"{a_path} has {len(ac)} strands and {b_path} {len(bc)}: they must come from the same roots")
-    ao = np.concatenate([[0], np.cumsum(ac)])
-    bo = np.concatenate([[0], np.cumsum(bc)])
+    ao = _hairio.strand_offsets(ac)
+    bo = _hairio.strand_offsets(bc)
     pick = np.random.default_rng(seed).random(len(ac)) < share
     parts = [b[bo[i] : bo[i + 1]] if pick[i] else a[ao[i] : ao[i + 1]] for i in range(len(ac))]
     counts = np.where(pick, bc, ac)

@@ -26,43 +26,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _hairio  # noqa: E402
 
 
-def read_directed_ply(path):
-    """Positions and tangents of a binary little-endian PLY with float x y z nx ny nz confidence."""
-    with open(path, "rb") as f:
-        header = b""
-        while not header.endswith(b"end_header\n"):
-            line = f.readline()
-            if not line:
-                raise SystemExit(f"{path}: no end_header; expected a binary PLY of directed points")
-            header += line
-        text = header.decode("ascii", "replace")
-        props = [ln.split()[-1] for ln in text.splitlines() if ln.startswith("property")]
-        if props != ["x", "y", "z", "nx", "ny", "nz", "confidence"] or "binary_little_endian" not in text:
-            raise SystemExit(f"{path}: expected binary little-endian x y z nx ny nz confidence, got {props}")
-        n = int(next(ln for ln in text.splitlines() if ln.startswith("element vertex")).split()[2])
-        a = np.frombuffer(f.read(n * 28), dtype="<f4", count=n * 7).reshape(n, 7)
-    return a[:, :3].astype(np.float64), a[:, 3:6].astype(np.float64)
-
-
 def resampled(path, step=0.001):
     """Every strand resampled every `step` metres: points, unit tangents, arc length from the root."""
     pts, counts = _hairio.read_hair(path)
-    off = np.concatenate([[0], np.cumsum(counts)])
+    off = _hairio.strand_offsets(counts)
     P, T, A = [], [], []
     for i in range(len(counts)):
-        s = pts[off[i] : off[i + 1]].astype(np.float64)
-        if len(s) < 2:
+        r, _ = _hairio.resample_by_arc(pts[off[i] : off[i + 1]].astype(np.float64), step)
+        if len(r) == 0:
             continue
-        arc = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(s, axis=0), axis=1))])
-        if arc[-1] < step:
-            continue
-        t = np.arange(0, arc[-1], step)
-        r = np.stack([np.interp(t, arc, s[:, k]) for k in range(3)], 1)
-        g = np.gradient(r, axis=0)
+        g = np.gradient(r, axis=0) if len(r) > 1 else np.zeros_like(r)
         g /= np.linalg.norm(g, axis=1, keepdims=True) + 1e-12
         P.append(r)
         T.append(g)
-        A.append(t)
+        A.append(np.arange(len(r)) * step)
     return np.concatenate(P), np.concatenate(T), np.concatenate(A)
 
 
@@ -112,9 +89,12 @@ def main(argv):
         if k not in opt:
             raise SystemExit(f"unknown key {k!r}; keys: {', '.join(opt)}")
         opt[k] = float(v)
-    X, T = read_directed_ply(points)
+    try:
+        X, T = _hairio.read_oriented_points(points)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
     gpts, gc = _hairio.read_hair(guides)
-    off = np.concatenate([[0], np.cumsum(gc)])
+    off = _hairio.strand_offsets(gc)
     skip = int(opt["skip"])
     starts = [
         gpts[off[i] : off[i] + max(2, min(skip, gc[i] - 1) + 1)].astype(np.float64)

@@ -21,15 +21,6 @@ STEP = 0.002
 BIN = 0.04
 
 
-def resample(s, step):
-    d = np.linalg.norm(np.diff(s, axis=0), axis=1)
-    a = np.concatenate([[0.0], np.cumsum(d)])
-    if a[-1] < 3 * step:
-        return None
-    t = np.arange(0.0, a[-1], step)
-    return np.stack([np.interp(t, a, s[:, k]) for k in range(3)], axis=1)
-
-
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
@@ -38,8 +29,8 @@ def main():
     offsets = _hairio.strand_offsets(counts)
     bins = {}
     for i in range(0, len(counts), every):
-        s = resample(points[offsets[i] : offsets[i] + counts[i]].astype(np.float64), STEP)
-        if s is None:
+        s, length = _hairio.resample_by_arc(points[offsets[i] : offsets[i] + counts[i]].astype(np.float64), STEP)
+        if length < 3 * STEP:
             continue
         t = np.diff(s, axis=0)
         t /= np.linalg.norm(t, axis=1, keepdims=True) + 1e-12

@@ -372,39 +372,34 @@ pub fn grow_one(
             }
             None => None,
         };
-        // Points trump the field (experiment): follow them alone where they are dense enough.
-        let trumped = match trace.filter(|_| params.trace_trumps > 0.0 && step_no >= 3 && escaping == 0) {
-            Some(t) => match traced(t, p, prev, params) {
-                Some((td, w)) if td != Vec3::ZERO && w >= params.trace_trumps => Some(td),
-                _ => None,
-            },
-            None => None,
-        };
-        let d = if trumped.is_some() { trumped } else { d };
-        let d = match d {
-            Some(d) if trumped.is_some() => {
+        // The directed points near `p`, asked once: to blend with the field, or to trump it
+        // (`trace_trumps`, also where the field is missing).
+        let wants_trace =
+            params.trace_radius > 0.0 && step_no >= 3 && escaping == 0 && (d.is_some() || params.trace_trumps > 0.0);
+        let tr =
+            trace.filter(|_| wants_trace).and_then(|t| traced(t, p, prev, params)).filter(|&(td, _)| td != Vec3::ZERO);
+        let trumped = tr.filter(|&(_, w)| params.trace_trumps > 0.0 && w >= params.trace_trumps).map(|(td, _)| td);
+        let d = match (trumped, d) {
+            (Some(td), _) => {
                 gap = 0;
-                d
+                td
             }
-            Some(d) if escaping > 0 => {
+            (None, Some(d)) if escaping > 0 => {
                 gap = 0;
                 escaping -= 1;
                 (d * (1.0 - params.escape_gravity) + Vec3::NEG_Z * params.escape_gravity).normalize_or(d)
             }
-            Some(d) => {
+            (None, Some(d)) => {
                 gap = 0;
-                match trace.filter(|_| params.trace_radius > 0.0 && step_no >= 3) {
-                    Some(t) => match traced(t, p, prev, params) {
-                        Some((td, w)) if td != Vec3::ZERO => {
-                            let a = w / (w + params.trace_weight);
-                            (d * (1.0 - a) + td * a).normalize_or(d)
-                        }
-                        _ => d,
-                    },
+                match tr {
+                    Some((td, w)) => {
+                        let a = w / (w + params.trace_weight);
+                        (d * (1.0 - a) + td * a).normalize_or(d)
+                    }
                     None => d,
                 }
             }
-            None => {
+            (None, None) => {
                 gap += 1;
                 if gap > if free { free_steps } else { max_gap } {
                     stop = Stop::NotHair;
