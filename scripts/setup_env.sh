@@ -3,11 +3,20 @@
 #   - .venv/ (Python 3.11) with bpy, numpy, maturin, pytest (requirements-dev.txt);
 #   - the release build of the `hairrecon` CLI (target/release/hairrecon);
 #   - the Python module `hairrecon`: one abi3 wheel built by maturin (target/wheels-hairrecon/), installed
-#     into .venv; the Blender extension's tests bundle the same wheel.
+#     into .venv; the Blender extension's tests bundle the same wheel;
+#   - with --blender42: also .venv-blender42 with bpy 4.2 (requirements-blender42.txt), the oldest Blender the
+#     extension supports, for the extension's tests (scripts/test.sh).
 # Needs: a Rust toolchain (cargo) and CPython 3.11 with venv and pip.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
+BLENDER42=0
+for arg in "$@"; do
+  case "$arg" in
+    --blender42) BLENDER42=1 ;;
+    *) echo "setup: error: unknown argument '$arg' (the only option is --blender42)" >&2; exit 2 ;;
+  esac
+done
 
 PY=${PYTHON:-}
 if [ -z "$PY" ]; then
@@ -45,3 +54,19 @@ rm -rf target/wheels-hairrecon
 wheel=$(ls target/wheels-hairrecon/hairrecon-*.whl | head -n 1)
 .venv/bin/python -m pip install --quiet --force-reinstall --no-deps "$wheel"
 .venv/bin/python -c 'import hairrecon, bpy; print("setup: ok (hairrecon", hairrecon.__version__ + ", bpy", bpy.app.version_string + ")")'
+
+if [ "$BLENDER42" = 1 ]; then
+  stamp42=.venv-blender42/.requirements.sha
+  want42=$(sha256sum requirements-blender42.txt | cut -d' ' -f1)
+  if [ ! -x .venv-blender42/bin/python ] || [ "$(cat "$stamp42" 2>/dev/null)" != "$want42" ]; then
+    echo "setup: installing bpy 4.2 into .venv-blender42 (requirements-blender42.txt)"
+    [ -x .venv-blender42/bin/python ] || "$PY" -m venv .venv-blender42
+    .venv-blender42/bin/python -m pip install --quiet --upgrade pip
+    .venv-blender42/bin/python -m pip install --quiet -r requirements-blender42.txt
+    echo "$want42" > "$stamp42"
+  fi
+  .venv-blender42/bin/python -c 'import bpy, sys
+if bpy.app.version[:2] != (4, 2):
+    sys.exit(f"setup: error: .venv-blender42 holds bpy {bpy.app.version_string}, not 4.2; delete .venv-blender42")
+print("setup: ok (.venv-blender42: bpy", bpy.app.version_string + ")")'
+fi

@@ -16,7 +16,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 WORKER = Path(__file__).with_name("addon_worker.py")
-PYTHON = ROOT / ".venv" / "bin" / "python"
+# The Python that runs Blender: the project's .venv (bpy 5.0), or HAIRRECON_TEST_PYTHON, a Python with another
+# bpy (scripts/test_blender42.sh runs these tests with bpy 4.2, the oldest Blender the extension supports).
+PYTHON = Path(os.environ.get("HAIRRECON_TEST_PYTHON") or ROOT / ".venv" / "bin" / "python")
 
 
 def run_worker(task: str, user_dir: Path, timeout: float = 600, **params) -> dict:

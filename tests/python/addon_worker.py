@@ -298,7 +298,10 @@ def attach_node_check(obj, scale=0.05) -> dict:
         must carry the hair along when the scalp deforms: here it grows by `scale`."""
     cv = obj.data
     surf = cv.surface
-    path = Path(bpy.utils.system_resource("DATAFILES")) / "assets" / "nodes" / "procedural_hair_node_assets.blend"
+    assets = Path(bpy.utils.system_resource("DATAFILES")) / "assets"
+    # Blender 5.0 keeps the hair node assets in assets/nodes, 4.2-4.5 in assets/geometry_nodes
+    path = next((p for p in (assets / d / "procedural_hair_node_assets.blend" for d in ("nodes", "geometry_nodes"))
+                 if p.is_file()), assets / "nodes" / "procedural_hair_node_assets.blend")
     with bpy.data.libraries.load(str(path), link=False) as (src, dst):
         dst.node_groups = [n for n in src.node_groups if n == "Attach Hair Curves to Surface"]
     ng = dst.node_groups[0]
