@@ -62,7 +62,13 @@ class HairreconSettings(bpy.types.PropertyGroup):
         default="OBJECT",
     )
     scalp_object: PointerProperty(name="Scalp Object", type=bpy.types.Object, poll=_is_mesh)
-    head_object: PointerProperty(name="Head Mesh", type=bpy.types.Object, poll=_is_mesh)
+    head_object: PointerProperty(
+        name="Head Mesh",
+        type=bpy.types.Object,
+        poll=_is_mesh,
+        description="The head without hair (optional with a scalp object): strands behind it are hidden, "
+        "none end up inside it",
+    )
     scalp_vertex_group: StringProperty(name="Vertex Group", description="The head mesh's vertex group of the scalp")
     quality: EnumProperty(
         name="Quality",

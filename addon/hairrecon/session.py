@@ -94,6 +94,14 @@ class Session:
                     raise UserError(f"the scalp {s.scalp_object.name!r} is not a mesh object")
                 scalp, _ = scene_read.scalp_data(s.scalp_object, depsgraph)
                 surface, group = s.scalp_object.name, ""
+                # The head, when there is one, hides the strands behind it (DR, visual hull) and keeps
+                # them out of it; without it the hull cuts what the cameras see through the head.
+                if s.head_object is not None:
+                    if s.head_object.type != "MESH":
+                        raise UserError(f"the head mesh {s.head_object.name!r} is not a mesh object")
+                    v, t, _ = scene_read.mesh_of(s.head_object, depsgraph)
+                    head = MeshData(s.head_object.name, v, t)
+                    check_mesh(head, "head mesh")
             else:
                 obj = s.head_object
                 if obj is None or obj.type != "MESH":

@@ -29,6 +29,7 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
         col.prop(s, "scalp_source")
         if s.scalp_source == "OBJECT":
             col.prop(s, "scalp_object")
+            col.prop(s, "head_object")
         else:
             col.prop(s, "head_object")
             if s.head_object is not None:

@@ -476,6 +476,20 @@ def task_pipeline(p):
             out["hull_switch"][f"session_{flag}"] = sess.options.get("hull_trim")
         finally:
             sess.cleanup()
+    # Import Capture sets the head mesh beside the scalp object; the capture the add-on writes must
+    # carry it (the visual hull and DR hide what lies behind the head, the output stays out of it)
+    hd = Path(p["workdir"]) / "session_head"
+    sess = session_mod.Session.prepare(bpy.context, str(hd))
+    try:
+        written = _json.loads((hd / "capture" / "capture.json").read_text())
+        out["head_passed"] = {
+            "scalp_source": s.scalp_source,
+            "head_object": s.head_object.name if s.head_object else None,
+            "head_mesh": written.get("head_mesh"),
+            "head_ply": (hd / "capture" / str(written.get("head_mesh"))).is_file(),
+        }
+    finally:
+        sess.cleanup()
     if runs and not runs[-1]["error"]:
         hair = [o for o in new_result_objects(out["import"]["snapshot"]) if o.type == "CURVES"]
         children = [o for o in hair if not o.name.endswith("Guides")]

@@ -276,6 +276,15 @@ def test_hull_switch_reaches_the_pipeline(pipeline):
     assert h["session_False"] is False and h["session_True"] is True, h
 
 
+def test_the_head_mesh_reaches_the_capture(pipeline):
+    # the imported scene has a scalp object AND a head; the head must reach the library too (without it
+    # the visual hull cut 69% of the demo's strand points and the run kept them whole)
+    h = pipeline["head_passed"]
+    assert h["scalp_source"] == "OBJECT"
+    assert h["head_object"] is not None
+    assert h["head_mesh"] == "head.ply" and h["head_ply"]
+
+
 def test_blenders_attach_node_and_surface_deform_use_the_attachment(pipeline):
     a = pipeline["attach_node"]
     # Blender's "Attach Hair Curves to Surface", sampling the UV at each root itself, finds ours
