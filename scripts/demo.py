@@ -34,7 +34,7 @@ DR_ITERS_GUIDES = 100
 DR_ITERS_CHILDREN = 40
 # Ground-truth strands of the demo's hairstyle. The method needs hair dense enough that the cameras do not see
 # through it (the raw mesh and the masks then describe a surface): with 2,000 strands the demo scored undirected
-# F1 15.4 -> 15.5 at 2 mm/20° (session 15, 1 min 42 s), with 20,000 27.7 -> 34.4 (session 19, 5 min 11 s).
+# F1 15.4 -> 15.5 at 2 mm/20° (session 15, 1 min 42 s), with 20,000 29.3 -> 35.8 (session 19, 4 min 58 s).
 STRANDS = 20000
 CHILDREN = 20000
 
