@@ -17,7 +17,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 WORKER = Path(__file__).with_name("addon_worker.py")
 # The Python that runs Blender: the project's .venv (bpy 5.0), or HAIRRECON_TEST_PYTHON, a Python with another
-# bpy (scripts/test_blender42.sh runs these tests with bpy 4.2, the oldest Blender the extension supports).
+# bpy (scripts/test.sh runs these tests a second time with .venv-blender42: bpy 4.2, the oldest Blender the
+# extension supports).
 PYTHON = Path(os.environ.get("HAIRRECON_TEST_PYTHON") or ROOT / ".venv" / "bin" / "python")
 
 
