@@ -39,7 +39,8 @@ def parse_args(argv):
     ap.add_argument("--cameras", help="name of the collection of cameras")
     ap.add_argument("--raw-mesh", help="name of the raw mesh object")
     ap.add_argument("--scalp", help="name of the scalp mesh object")
-    ap.add_argument("--head", help="name of the head mesh object (with --scalp-group)")
+    ap.add_argument("--head", help="name of the head mesh object: with --scalp-group its vertex group is the scalp; "
+                    "with a scalp object it hides the strands behind it and keeps them out of it")
     ap.add_argument("--scalp-group", help="vertex group of --head that is the scalp")
     ap.add_argument("--photos", help="folder of photos named after the cameras")
     ap.add_argument("--masks", help="folder of hair masks named after the cameras")
@@ -118,10 +119,14 @@ def apply_overrides(bpy, a):
         s.raw_mesh = obj(a.raw_mesh, "raw-mesh")
     if a.scalp:
         s.scalp_source, s.scalp_object = "OBJECT", obj(a.scalp, "scalp")
-    if a.head or a.scalp_group:
-        if not (a.head and a.scalp_group):
-            raise Failure("--head and --scalp-group go together")
-        s.scalp_source, s.head_object, s.scalp_vertex_group = "VERTEX_GROUP", obj(a.head, "head"), a.scalp_group
+    if a.scalp_group:
+        if not a.head:
+            raise Failure("--scalp-group needs --head, the mesh whose vertex group it is")
+        if a.scalp:
+            raise Failure("give the scalp either as an object (--scalp) or as a vertex group (--head, --scalp-group)")
+        s.scalp_source, s.scalp_vertex_group = "VERTEX_GROUP", a.scalp_group
+    if a.head:
+        s.head_object = obj(a.head, "head")
     if a.photos:
         s.photo_folder = str(Path(a.photos).resolve())
     if a.masks:

@@ -405,3 +405,11 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     assert bad.returncode == 1
     errors = [l for l in bad.stderr.splitlines() if l.startswith("error:")]
     assert len(errors) == 1 and "NoSuchCollection" in errors[0], bad.stderr[-2000:]
+    # the scalp given two ways at once is refused before anything runs
+    both = subprocess.run(
+        [str(PYTHON), str(ROOT / "scripts" / "reconstruct.py"), blend, "--out", str(tmp_path / "both"),
+         "--scalp", "scalp", "--head", "head", "--scalp-group", "scalp"],
+        capture_output=True, text=True, env=env, timeout=300,
+    )
+    errors = [l for l in both.stderr.splitlines() if l.startswith("error:")]
+    assert both.returncode == 1 and len(errors) == 1 and "--scalp-group" in errors[0], both.stderr[-2000:]
