@@ -17,7 +17,7 @@ use hairrecon_core::Bvh;
 use hairrecon_recon::dr::optimize::Evaluator;
 use hairrecon_recon::dr::{DrOptions, DrTargets};
 use hairrecon_recon::orient2d::OrientationMap;
-use hairrecon_recon::pipeline::load_orient2d;
+use hairrecon_recon::pipeline::{load_gt_orient2d, load_orient2d};
 use hairrecon_recon::progress::Progress;
 
 struct Quiet;
@@ -36,17 +36,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = PathBuf::from(&args[1]);
     let gt_orient = args.iter().any(|a| a == "gt_orient=1");
     let sets: Vec<&String> = args[2..].iter().filter(|a| !a.contains('=')).collect();
-    let maps: Vec<OrientationMap> = if gt_orient {
-        capture
-            .views
-            .iter()
-            .map(|v| {
-                OrientationMap::load_exr(v.gt_orientation.as_ref().ok_or("no gt/orientation")?).map_err(Into::into)
-            })
-            .collect::<Result<_, Box<dyn std::error::Error>>>()?
-    } else {
-        load_orient2d(&capture, &dir)?
-    };
+    let maps: Vec<OrientationMap> =
+        if gt_orient { load_gt_orient2d(&capture)? } else { load_orient2d(&capture, &dir)? };
     let head = match &capture.head_mesh {
         Some(h) => Some(Bvh::new(read_mesh(h)?)),
         None => None,
@@ -54,6 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let targets = DrTargets::from_capture(&capture, &maps, head.as_ref(), &Quiet)?;
     let opts = DrOptions::default();
     let nv = targets.views.len();
+    let all_views: Vec<usize> = (0..nv).collect();
     println!("{} views, orientation targets: {}", nv, if gt_orient { "gt/orientation" } else { "DIR/orient2d" });
     println!("{:<48} {:>10} {:>12} {:>12} {:>10}", "set", "strands", "L_m", "L_o", "L_m+L_o");
     for s in sets {
@@ -63,14 +55,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             PathBuf::from(s)
         };
         let set = read_strands(&path)?;
-        let offsets: Vec<usize> = set.offsets().to_vec();
-        let x: Vec<Vec3> = set.points().to_vec();
-        let mut ev = Evaluator::new(&x, &offsets, None, &targets, &opts);
+        let (x, offsets) = (set.points(), set.offsets());
+        let mut ev = Evaluator::new(x, offsets, None, &targets, &opts);
         let mut g = vec![Vec3::ZERO; x.len()];
         let (mut lm, mut lo) = (0.0f64, 0.0f64);
-        let all: Vec<usize> = (0..nv).collect();
-        for chunk in all.chunks(opts.views_per_step.max(1)) {
-            let t = ev.evaluate(&x, &offsets, None, &targets, chunk, &opts, &mut g)?;
+        for chunk in all_views.chunks(opts.views_per_step.max(1)) {
+            let t = ev.evaluate(x, offsets, None, &targets, chunk, &opts, &mut g)?;
             let [m, o, _, _] = t.values();
             lm += m * chunk.len() as f64;
             lo += o * chunk.len() as f64;

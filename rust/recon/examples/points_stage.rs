@@ -22,7 +22,7 @@ use hairrecon_core::formats::{read_mesh, read_strands};
 use hairrecon_core::Bvh;
 use hairrecon_recon::metrics::{score_points, PointIndex};
 use hairrecon_recon::orient2d::{GrayImage, OrientationMap};
-use hairrecon_recon::pipeline::load_orient2d;
+use hairrecon_recon::pipeline::{load_gt_orient2d, load_orient2d};
 use hairrecon_recon::points3d::{estimate, LineMvsParams, MvsView};
 use hairrecon_recon::progress::NoProgress;
 use hairrecon_recon::raw_mesh::load_depth_views;
@@ -98,17 +98,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let raw = Bvh::new(read_mesh(&capture.raw_mesh)?);
-    let maps: Vec<OrientationMap> = if gt_orient {
-        capture
-            .views
-            .iter()
-            .map(|v| {
-                OrientationMap::load_exr(v.gt_orientation.as_ref().ok_or("no gt_orientation")?).map_err(Into::into)
-            })
-            .collect::<Result<_, Box<dyn std::error::Error>>>()?
-    } else {
-        load_orient2d(&capture, &dir)?
-    };
+    let maps: Vec<OrientationMap> =
+        if gt_orient { load_gt_orient2d(&capture)? } else { load_orient2d(&capture, &dir)? };
     let images: Vec<GrayImage> = capture.views.iter().map(|v| GrayImage::load(&v.image)).collect::<Result<_, _>>()?;
     let views = MvsView::for_capture(&capture, &maps, &images);
 

@@ -72,6 +72,8 @@ pub enum ReconError {
     Dr(DrError),
     #[error("the visual hull: {0}")]
     Hull(HullError),
+    #[error("view {view} of the capture has no ground-truth orientation map (gt/orientation)")]
+    NoGtOrientation { view: String },
 }
 
 impl From<HullError> for ReconError {
@@ -256,6 +258,19 @@ pub fn load_orient2d(capture: &Capture, out_dir: &Path) -> Result<Vec<Orientatio
         .iter()
         .map(|v| {
             OrientationMap::load_exr(&out_dir.join("orient2d").join(format!("{}.exr", v.name))).map_err(Into::into)
+        })
+        .collect()
+}
+
+/// The capture's ground-truth orientation maps (`gt/orientation`), one per view, in the layout of
+/// [`load_orient2d`]: for the tuning examples that ask what perfect 2D orientation would change.
+pub fn load_gt_orient2d(capture: &Capture) -> Result<Vec<OrientationMap>, ReconError> {
+    capture
+        .views
+        .iter()
+        .map(|v| {
+            let path = v.gt_orientation.as_ref().ok_or_else(|| ReconError::NoGtOrientation { view: v.name.clone() })?;
+            OrientationMap::load_exr(path).map_err(Into::into)
         })
         .collect()
 }
