@@ -80,6 +80,36 @@ pub struct OrientationMap {
 }
 
 impl OrientationMap {
+    /// θ and confidence interpolated bilinearly between the four nearest pixels, in the doubled
+    /// angle (cos 2θ, sin 2θ) weighted by confidence, so that θ and π blend as the same line;
+    /// confidence 0 outside the image.
+    #[inline]
+    pub fn sample_bilinear(&self, x: f32, y: f32) -> (f32, f32) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (xi, yi) = (x0 as i64, y0 as i64);
+        let (mut cx, mut sy, mut conf) = (0.0f32, 0.0f32, 0.0f32);
+        for (dx, dy, wt) in
+            [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
+        {
+            let (px, py) = (xi + dx, yi + dy);
+            if px < 0 || py < 0 || px >= w || py >= h {
+                continue;
+            }
+            let i = (py * w + px) as usize;
+            let c = self.confidence[i] * wt;
+            let (s2, c2) = (2.0 * self.theta[i]).sin_cos();
+            cx += c * c2;
+            sy += c * s2;
+            conf += c;
+        }
+        if conf <= 0.0 {
+            return (0.0, 0.0);
+        }
+        (0.5 * sy.atan2(cx).rem_euclid(std::f32::consts::TAU), conf)
+    }
+
     /// θ and confidence at the nearest pixel; confidence 0 outside the image.
     #[inline]
     pub fn sample(&self, x: f32, y: f32) -> (f32, f32) {
