@@ -31,14 +31,25 @@
 //!   point is visible (a ray cast on the raw mesh); a view where the point falls outside the hair
 //!   costs 1 at a fixed weight;
 //! - a point is kept when its cost is below `max_cost` and at least `min_agree` neighbouring views
-//!   agree within `agree_angle`.
+//!   agree within `agree_angle`;
+//! - (`patchmatch_iters`, default 0) PatchMatch sweeps after the per-pixel search: each reference
+//!   pixel tries its four neighbours' 3D lines and random perturbations of its own depth and
+//!   direction under one cost (orientation + `patchmatch_photo` × photometric), red-black and
+//!   seeded (see [`estimate`]); (`bilinear_orientation`, default off) the maps are read bilinearly
+//!   in the doubled angle so that the cost varies smoothly. Measured in session 20 (`examples/
+//!   points_stage`, precision / coverage at 2 mm/20°): paper-preset curly 74.3 / 11.3% (73 s)
+//!   → 71.9 / 12.0% with 3 sweeps and bilinear maps (284 s), 74.1 / 9.8% with a ten times
+//!   stronger depth prior and a photometric weight of 1; test-preset straight 87.7 / 40.2% →
+//!   83.1 / 39.6%. Curly's points are near the hair (median 0.41 mm from it) but a quarter of them
+//!   are off by more than 20° in direction: the 2D orientation, not the depth, limits them, and
+//!   the sweeps cannot mend that; the strands grown from the sweeps' points score lower (curly
+//!   undirected F1 48.8 → 47.4 at 2 mm/20°, README "Session 20"), so they stay off.
 //!
-//! Not built (yet): PatchMatch's random search and propagation between neighbouring pixels, and
-//! LPMVS's final cross-view point filtering; the exhaustive search over the small hypothesis set
-//! replaces the first. A point-radius cross-view filter (points of ≥ 2 other views within 1 mm)
-//! was tried and dropped: at 2.3 mm per pixel, points of different views rarely lie that close
-//! (it kept 7% of the points); a line-based support test would be needed. The orientation cost alone barely depends on depth, hence the photometric
-//! term for the depth.
+//! Not built: LPMVS's final cross-view point filtering. A point-radius cross-view filter (points
+//! of ≥ 2 other views within 1 mm) was tried and dropped: at 2.3 mm per pixel, points of different
+//! views rarely lie that close (it kept 7% of the points); a line-based support test would be
+//! needed. The orientation cost alone barely depends on depth, hence the photometric term for the
+//! depth.
 
 use std::io::{BufRead, Read, Write};
 use std::path::Path;
