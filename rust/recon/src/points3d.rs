@@ -570,8 +570,10 @@ fn hash_unit(seed: u64, a: u64, b: u64) -> f32 {
 /// Per view: (1) every reference pixel gets its hypothesis by the per-pixel search of the module
 /// doc; (2) with `patchmatch_iters > 0`, PatchMatch sweeps (red-black, so that each half reads the
 /// other's state): a pixel tries each of its four neighbours' 3D lines (the depth where its ray
-/// passes nearest that line, the line's direction projected into its own constraint plane) and
-/// two random perturbations of its own (depth ±2 mm, φ ±π/8, halved each sweep), keeping whichever
+/// passes nearest that line, the line's direction projected into its own constraint plane, and
+/// that direction refitted to the neighbouring views there) and two random changes of its own (a
+/// depth within ±3 mm with the direction refitted, then φ within ±π/8; both ranges × 0.6 per
+/// sweep), keeping whichever
 /// lowers the cost `orientation + patchmatch_photo × (photometric + depth prior)`; depths stay
 /// within −3…+8 mm of the raw mesh; (3) the direction refit, the cost and agreement tests.
 pub fn estimate(
