@@ -779,17 +779,22 @@ pub fn estimate(
                 let c = grid[gi].as_ref()?;
                 let (x, y) = ((gi % gw) * s, (gi / gw) * s);
                 let p = o + c.ray * c.t;
-                let mut d = c.dir(c.phi);
-                let mut best_cost = line_cost(views, c.vis(), p, d, offsets, bil);
+                let d = c.dir(c.phi);
                 // A free 3D direction fitted to every view that sees the point, the reference
                 // included (its θ is as noisy as the others'), judged by the same cost plus the
                 // reference view.
-                if params.fit_direction {
+                let (best_cost, d) = if params.fit_direction {
                     let judge = |d: Vec3| line_cost(views, c.vis().chain(std::iter::once(vi)), p, d, offsets, bil);
                     let fitted = fit_direction(views, c.vis().chain(std::iter::once(vi)), p, d, agree_s2, bil);
                     let (c0, c1) = (judge(d), judge(fitted));
-                    (best_cost, d) = if c1 < c0 { (c1, fitted) } else { (c0, d) };
-                }
+                    if c1 < c0 {
+                        (c1, fitted)
+                    } else {
+                        (c0, d)
+                    }
+                } else {
+                    (line_cost(views, c.vis(), p, d, offsets, bil), d)
+                };
                 if best_cost > params.max_cost {
                     return None;
                 }
@@ -824,27 +829,18 @@ mod tests {
     use crate::progress::NoProgress;
     use hairrecon_core::TriMesh;
 
-    /// The ground-truth strand direction on the synthetic plane: it turns with x.
-    fn field(p: Vec3) -> Vec3 {
-        field_turning(p, 6.0)
-    }
-
-    /// The same, turning `rate` radians per metre of x.
+    /// The ground-truth strand direction on the synthetic plane: it turns with x, `rate` radians
+    /// per metre.
     fn field_turning(p: Vec3, rate: f32) -> Vec3 {
         let a = 0.4 + rate * p.x;
         Vec3::new(a.cos(), a.sin(), 0.3).normalize()
     }
 
-    /// A square hair sheet (z = 0, 0.2 m wide, also the raw mesh), seven 96×96 cameras 0.5 m away
-    /// (one above, six at 35° tilt), and orientation maps rendered from `field` with a seeded
-    /// uniform angle noise of ±`noise_deg`.
-    fn scene(noise_deg: f32) -> (Bvh, Vec<Camera>, Vec<OrientationMap>) {
-        scene_with(noise_deg, 6.0, 0.0, 30.0)
-    }
-
-    /// The same with the field turning `rate` radians per metre and the raw mesh (the depth prior)
-    /// `mesh_z` metres off the sheet that the maps are rendered from, seen with a field of view of
-    /// `fov_deg` (30°: 2.8 mm per pixel on the sheet; 10°: 0.9 mm).
+    /// A square hair sheet (z = 0, 0.2 m wide), seven 96×96 cameras 0.5 m away (one above, six at
+    /// 35° tilt) with a field of view of `fov_deg` (30°: 2.8 mm per pixel on the sheet; 10°:
+    /// 0.9 mm), orientation maps rendered from `field_turning(·, rate)` with a seeded uniform angle
+    /// noise of ±`noise_deg`, and the raw mesh (the depth prior): the same sheet `mesh_z` metres
+    /// up.
     fn scene_with(noise_deg: f32, rate: f32, mesh_z: f32, fov_deg: f32) -> (Bvh, Vec<Camera>, Vec<OrientationMap>) {
         let h = 0.1;
         let sheet = |z: f32| {
@@ -887,48 +883,59 @@ mod tests {
         (raw, cams, maps)
     }
 
-    /// (points, median and 95th-percentile direction error in degrees, largest distance to the sheet).
-    fn run(noise_deg: f32, params: &LineMvsParams) -> (usize, f32, f32, f32) {
-        let (raw, cams, maps) = scene(noise_deg);
-        let views: Vec<MvsView> =
-            cams.iter().zip(&maps).map(|(camera, map)| MvsView { camera, map, image: None }).collect();
-        let pts = estimate(&views, &raw, params, &NoProgress).unwrap();
-        let mut err: Vec<f32> = pts
-            .positions
-            .iter()
-            .zip(&pts.directions)
-            .map(|(p, d)| d.dot(field(*p)).abs().min(1.0).acos().to_degrees())
-            .collect();
-        err.sort_by(f32::total_cmp);
-        let q = |f: f32| err.get(((err.len() as f32 * f) as usize).min(err.len().max(1) - 1)).copied().unwrap_or(90.0);
-        let far = pts.positions.iter().map(|p| p.z.abs()).fold(0.0f32, f32::max);
-        (pts.len(), q(0.5), q(0.95), far)
+    /// What one run on a synthetic sheet gives: the number of points, the median and 95th percentile
+    /// of the direction error (degrees), and the largest and the median distance to the sheet (m).
+    struct SheetRun {
+        points: usize,
+        err_median: f32,
+        err_p95: f32,
+        far: f32,
+        z_median: f32,
     }
 
-    /// PatchMatch finds the depth that the per-pixel search cannot: the raw mesh lies 4 mm in front
-    /// of the sheet, the field turns fast enough (60 rad/m) that the neighbours' orientations tell
-    /// the depth, and without images there is no photometric depth search (the cameras see the
-    /// sheet at 0.9 mm per pixel). Returns the number of
-    /// points and the medians of |z| (m) and of the direction error (degrees).
-    fn run_offset(params: &LineMvsParams) -> (usize, f32, f32) {
-        let rate = 60.0;
-        let (raw, cams, maps) = scene_with(0.0, rate, 0.004, 10.0);
+    /// Runs the line MVS on [`scene_with`]`(noise_deg, rate, mesh_z, fov_deg)` without images.
+    fn run_sheet(noise_deg: f32, rate: f32, mesh_z: f32, fov_deg: f32, params: &LineMvsParams) -> SheetRun {
+        let (raw, cams, maps) = scene_with(noise_deg, rate, mesh_z, fov_deg);
         let views: Vec<MvsView> =
             cams.iter().zip(&maps).map(|(camera, map)| MvsView { camera, map, image: None }).collect();
         let pts = estimate(&views, &raw, params, &NoProgress).unwrap();
-        let median = |mut v: Vec<f32>| {
+        let sorted = |mut v: Vec<f32>| {
             v.sort_by(f32::total_cmp);
-            v.get(v.len() / 2).copied().unwrap_or(f32::NAN)
+            v
         };
-        let z = median(pts.positions.iter().map(|p| p.z.abs()).collect());
-        let err = median(
+        let q = |v: &[f32], f: f32| v.get(((v.len() as f32 * f) as usize).min(v.len().max(1) - 1)).copied();
+        let err = sorted(
             pts.positions
                 .iter()
                 .zip(&pts.directions)
                 .map(|(p, d)| d.dot(field_turning(*p, rate)).abs().min(1.0).acos().to_degrees())
                 .collect(),
         );
-        (pts.len(), z, err)
+        let z = sorted(pts.positions.iter().map(|p| p.z.abs()).collect());
+        SheetRun {
+            points: pts.len(),
+            err_median: q(&err, 0.5).unwrap_or(90.0),
+            err_p95: q(&err, 0.95).unwrap_or(90.0),
+            far: z.last().copied().unwrap_or(0.0),
+            z_median: q(&z, 0.5).unwrap_or(f32::NAN),
+        }
+    }
+
+    /// (points, median and 95th-percentile direction error in degrees, largest distance to the sheet)
+    /// on [`scene`].
+    fn run(noise_deg: f32, params: &LineMvsParams) -> (usize, f32, f32, f32) {
+        let r = run_sheet(noise_deg, 6.0, 0.0, 30.0, params);
+        (r.points, r.err_median, r.err_p95, r.far)
+    }
+
+    /// PatchMatch finds the depth that the per-pixel search cannot: the raw mesh lies 4 mm in front
+    /// of the sheet, the field turns fast enough (60 rad/m) that the neighbours' orientations tell
+    /// the depth, and without images there is no photometric depth search (the cameras see the
+    /// sheet at 0.9 mm per pixel). Returns the number of points and the medians of |z| (m) and of
+    /// the direction error (degrees).
+    fn run_offset(params: &LineMvsParams) -> (usize, f32, f32) {
+        let r = run_sheet(0.0, 60.0, 0.004, 10.0, params);
+        (r.points, r.z_median, r.err_median)
     }
 
     #[test]
