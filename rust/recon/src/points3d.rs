@@ -922,7 +922,7 @@ mod tests {
     }
 
     /// (points, median and 95th-percentile direction error in degrees, largest distance to the sheet)
-    /// on [`scene`].
+    /// on the default sheet (field turning 6 rad/m, raw mesh on the sheet, 30° field of view).
     fn run(noise_deg: f32, params: &LineMvsParams) -> (usize, f32, f32, f32) {
         let r = run_sheet(noise_deg, 6.0, 0.0, 30.0, params);
         (r.points, r.err_median, r.err_p95, r.far)
