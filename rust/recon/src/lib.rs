@@ -14,6 +14,7 @@
 //! - [`metrics`]: per-stage metrics against ground truth.
 
 pub mod direction;
+pub mod curl;
 pub mod dr;
 pub mod grow;
 pub mod hull;

@@ -9,6 +9,10 @@
 //!   visible hair surface (within `surface_band` of the raw mesh) that have such a point.
 //! - directed points: *agreement* = among points matched (undirected, 2 mm/20°), the share whose
 //!   direction also points the same way as the ground-truth tangent (dot > 0).
+//! - ringlet axes (curly hair, [`crate::curl`]): each point is matched to the nearest ground-truth
+//!   strand sample within 2 mm, whose axis is the tangent of that strand's centreline over one turn
+//!   of arc; *within_20* = share of matched points whose axis is within 20° of it (undirected),
+//!   *directed_within_20* the same with the sign.
 //!
 //! The strand metric itself (precision/recall/F1) is `hairrecon_core::metric`.
 
@@ -163,6 +167,73 @@ pub struct DirectionScore {
     pub judged: u64,
     /// Percent of judged points whose direction agrees with the ground truth.
     pub agreement: f64,
+}
+
+/// How well points' directions follow the ground truth's ringlet axes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AxisScore {
+    /// Points within the match distance of a ground-truth strand, and so judged.
+    pub judged: u64,
+    /// Percent of judged points within 20° of the axis, undirected.
+    pub within_20: f64,
+    /// The same, directed.
+    pub directed_within_20: f64,
+    /// Median undirected angle to the axis, degrees.
+    pub median_deg: f64,
+}
+
+/// The ground truth's ringlet axes: every strand's samples (every `step`) with the tangent of its
+/// centreline over `turn_arc` of arc ([`crate::curl::centreline`]), as an index.
+pub fn gt_axes(gt: &StrandSet, turn_arc: f32, step: f32) -> PointIndex {
+    let per: Vec<(Vec<Vec3>, Vec<Vec3>)> = gt
+        .iter()
+        .collect::<Vec<_>>()
+        .par_iter()
+        .filter_map(|s| {
+            let one = StrandSet::new(s.to_vec(), vec![s.len() as u32]).ok()?.resample_by_arclength(step).ok()?;
+            let r = one.points();
+            let c = crate::curl::centreline(s, turn_arc, step)?;
+            // The centreline is resampled along its own (shorter) arc: pair by arc fraction.
+            let n = r.len().min(c.len());
+            let tangent = |k: usize| (c[(k + 1).min(c.len() - 1)] - c[k.saturating_sub(1)]).normalize_or_zero();
+            let pts = r[..n].to_vec();
+            let tans = (0..n).map(|k| tangent(k * (c.len() - 1) / (r.len() - 1).max(1))).collect();
+            Some((pts, tans))
+        })
+        .collect();
+    let (mut points, mut tangents) = (Vec::new(), Vec::new());
+    for (p, t) in per {
+        points.extend(p);
+        tangents.extend(t);
+    }
+    PointIndex::new(points, tangents)
+}
+
+/// Scores `directions` at `positions` against the ground-truth axes of [`gt_axes`].
+pub fn score_axes(positions: &[Vec3], directions: &[Vec3], axes: &PointIndex, dist: f32) -> AxisScore {
+    let mut cosines: Vec<f32> = positions
+        .par_iter()
+        .zip(directions)
+        .filter_map(|(p, d)| {
+            let (i, r) = *axes.nearest(*p, 1).first()?;
+            (r <= dist).then(|| axes.tangents[i].dot(*d))
+        })
+        .collect();
+    let n = cosines.len();
+    if n == 0 {
+        return AxisScore::default();
+    }
+    let c20 = 20f32.to_radians().cos();
+    let within = cosines.iter().filter(|c| c.abs() >= c20).count();
+    let directed = cosines.iter().filter(|c| **c >= c20).count();
+    cosines.iter_mut().for_each(|c| *c = c.abs());
+    cosines.sort_by(|a, b| b.total_cmp(a));
+    AxisScore {
+        judged: n as u64,
+        within_20: 100.0 * within as f64 / n as f64,
+        directed_within_20: 100.0 * directed as f64 / n as f64,
+        median_deg: cosines[n / 2].clamp(-1.0, 1.0).acos().to_degrees() as f64,
+    }
 }
 
 /// Share of points (among those matched undirected) whose direction agrees with the ground truth.
