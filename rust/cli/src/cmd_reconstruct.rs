@@ -45,6 +45,11 @@ pub struct ReconstructArgs {
     /// Ablation: straight strands along the scalp normal instead of the Laplace flow.
     #[arg(long)]
     no_strand_init: bool,
+    /// Curls: `auto` (the images decide whether the hair is curly and which curl fits: radius,
+    /// period, handedness), `off` (strands follow the points' directions, as for straight and wavy
+    /// hair), or RADIUS_MM,PERIOD_MM,HAND with HAND 1 right-handed, -1 left-handed (e.g. 6.5,22,1).
+    #[arg(long, default_value = "auto")]
+    curl: String,
     /// Keep the initial strands: no strand optimization by differentiable rendering (DR).
     #[arg(long)]
     no_dr: bool,
@@ -167,6 +172,7 @@ fn options(a: &ReconstructArgs) -> Result<ReconstructOptions, Box<dyn std::error
         seed: a.seed,
         dr: !a.no_dr,
         hull_trim: !a.no_hull_trim,
+        curl: a.curl.parse().map_err(|e: String| format!("--curl: {e}"))?,
         dr_options: DrOptions {
             iterations_guides: a.dr_iters_guides,
             iterations_children: a.dr_iters_children,

@@ -86,6 +86,14 @@ fn dr_flags_reach_the_options() {
     for want in ["dr: true,", "reparam: true,", "neighbor_reparam: true,", "guide_opt: true,", "stop_after: None,"] {
         assert!(text.contains(want), "{want:?} not in\n{text}");
     }
+    assert!(text.contains("curl: Auto,"), "{text}");
+    let text = ok(&run(&["--out", "unused-out", "--print-options", "--curl", "off"], &[cap]));
+    assert!(text.contains("curl: Off,"), "{text}");
+    let text = ok(&run(&["--out", "unused-out", "--print-options", "--curl", "6.5,22,-1"], &[cap]));
+    assert!(
+        text.contains("radius: 0.0065,") && text.contains("period: 0.022,") && text.contains("hand: -1.0,"),
+        "{text}"
+    );
     let text = ok(&run(&["--out", "unused-out", "--print-options", "--no-dr", "--stop-after", "dr"], &[cap]));
     assert!(text.contains("dr: false,") && text.contains("stop_after: Some(\n        Dr,"), "{text}");
     // Bad values: one line on stderr, exit code 1.
@@ -94,6 +102,9 @@ fn dr_flags_reach_the_options() {
         ("--dr-views", "0", "--dr-views must be at least 1"),
         ("--dr-width-mm", "0", "--dr-width-mm must be a positive number"),
         ("--stop-after", "paint", "use one of orient2d, orient3d, direction, init, dr"),
+        ("--curl", "tight", "give off, auto or RADIUS_MM,PERIOD_MM,HAND"),
+        ("--curl", "6.5,22", "give three numbers"),
+        ("--curl", "6.5,22,2", "give 1 (right) or -1 (left)"),
     ] {
         let o = run(&["--out", "unused-out", "--print-options", flag, value], &[cap]);
         let err = String::from_utf8_lossy(&o.stderr);
@@ -131,5 +142,30 @@ fn no_dr_equals_stop_after_init_and_dr_keeps_it_as_init() {
     for want in ["stage times:", "dr ", "strands before DR (init)", "strands after DR", "undirected", "2mm/20°"] {
         assert!(text_c.contains(want), "{want:?} not in\n{text_c}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--curl`: on this straight synthetic capture `auto` finds no curls (the ringlet axes hang less
+/// than the points' own directions) and writes the same strands as `off`; a fixed curl grows along
+/// the ringlet axes (saved as `points_axes.ply`), sweeps helices of that radius and records it.
+#[test]
+fn curl_auto_keeps_straight_hair_and_a_fixed_curl_makes_helices() {
+    let dir = tmp("curl");
+    let cap = common::write_capture(&dir.join("capture"), 600, 128, 3);
+    let small = ["--guides", "60", "--children", "400", "--stop-after", "init"];
+    let (a, b, c) = (dir.join("auto"), dir.join("off"), dir.join("fixed"));
+    ok(&run(&[&small[..], &["--out", a.to_str().unwrap()]].concat(), &[&cap]));
+    ok(&run(&[&small[..], &["--out", b.to_str().unwrap(), "--curl", "off"]].concat(), &[&cap]));
+    ok(&run(&[&small[..], &["--out", c.to_str().unwrap(), "--curl", "6.5,22,1"]].concat(), &[&cap]));
+    let read = |p: PathBuf| std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    let metrics = |d: &Path| -> serde_json::Value { serde_json::from_slice(&read(d.join("metrics.json"))).unwrap() };
+    let (ma, mc) = (metrics(&a), metrics(&c));
+    let auto = &ma["curl_auto"];
+    assert!(auto["down_tangents"].as_f64().unwrap() > auto["down_right"].as_f64().unwrap(), "{auto}");
+    assert!(ma.get("curl").is_none() && !a.join("points_axes.ply").exists());
+    assert!(read(a.join("strands.hair")) == read(b.join("strands.hair")), "auto changed straight hair");
+    assert!((mc["curl"]["radius_mm"].as_f64().unwrap() - 6.5).abs() < 1e-4, "{}", mc["curl"]);
+    assert!(c.join("points_axes.ply").exists());
+    assert!(read(c.join("strands.hair")) != read(b.join("strands.hair")));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -35,6 +35,7 @@ struct Args<'a> {
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
     hull_trim: bool,
+    curl: &'a str,
 }
 
 fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
@@ -62,6 +63,7 @@ fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
         dr: a.dr,
         dr_options,
         hull_trim: a.hull_trim,
+        curl: a.curl.parse().map_err(|e: String| HairreconError::new_err(format!("curl: {e}")))?,
         ..Default::default()
     })
 }
@@ -110,7 +112,8 @@ fn run_error_to_py(e: RunError) -> PyErr {
 /// A reconstruction running in the background. `dr=False` keeps the initial strands (no
 /// optimization by differentiable rendering); `dr_iters_guides` / `dr_iters_children` set the DR
 /// steps (None: the library's defaults); `hull_trim=False` keeps the initial strands' ends that a
-/// view sees where its mask has no hair (by default they are cut at the visual hull before DR).
+/// view sees where its mask has no hair (by default they are cut at the visual hull before DR);
+/// `curl` is `"auto"` (the images decide), `"off"` or `"RADIUS_MM,PERIOD_MM,HAND"` (`--curl`).
 ///
 /// ```python
 /// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000, dr=True)
@@ -134,7 +137,7 @@ pub struct Reconstruction {
 #[pymethods]
 impl Reconstruction {
     #[new]
-    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true))]
+    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, curl="auto"))]
     fn new(
         capture_dir: PathBuf,
         out_dir: PathBuf,
@@ -148,6 +151,7 @@ impl Reconstruction {
         dr_iters_guides: Option<usize>,
         dr_iters_children: Option<usize>,
         hull_trim: bool,
+        curl: &str,
     ) -> PyResult<Self> {
         let args = Args {
             guides,
@@ -160,6 +164,7 @@ impl Reconstruction {
             dr_iters_guides,
             dr_iters_children,
             hull_trim,
+            curl,
         };
         Ok(Self {
             capture_dir,
@@ -235,7 +240,7 @@ impl Reconstruction {
 /// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
 /// while Rust works). Returns the same dict as `Reconstruction.result()`.
 #[pyfunction]
-#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true))]
+#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, curl="auto"))]
 fn reconstruct<'py>(
     py: Python<'py>,
     capture_dir: PathBuf,
@@ -250,6 +255,7 @@ fn reconstruct<'py>(
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
     hull_trim: bool,
+    curl: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(Args {
         guides,
@@ -262,6 +268,7 @@ fn reconstruct<'py>(
         dr_iters_guides,
         dr_iters_children,
         hull_trim,
+        curl,
     })?;
     let progress = SharedProgress::new();
     let out = py.allow_threads(|| run(&capture_dir, &out_dir, &opts, &progress).map_err(run_error_to_py))?;

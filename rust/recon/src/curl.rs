@@ -13,10 +13,11 @@
 //!
 //! [`sweep_helices`] then replaces each grown strand by a helix about its own centreline.
 //!
-//! Measured on the paper curly preset (README, Reconstruction, session 22): the axes of
-//! [`ringlet_axes`] lie within 20° of the ground truth's for 67% of the points (their tangents: 2%);
-//! strands grown from them and swept into helices score 64.1 undirected / 62.4 directed F1 at
-//! 2 mm/20°, against 51.6 / 46.7 for strands grown from the tangents.
+//! Measured on the paper curly preset (README, Reconstruction, session 22): at the preset's own
+//! pitch (62°) the axes of [`ringlet_axes`] lie within 20° of the ground truth's for 74% of the points
+//! (their tangents: 1%; `examples/curl_stage`); `hairrecon reconstruct … --stop-after init` with
+//! `--curl auto` (the default) picks right-handed curls of 9 mm and 22 mm and scores 66.3 undirected /
+//! 63.9 directed F1 at 2 mm/20°, against 51.6 / 46.7 for strands grown from the tangents (`--curl off`).
 
 use glam::Vec3;
 use hairrecon_core::mesh::TriMesh;
@@ -57,8 +58,46 @@ impl Curl {
     }
 }
 
-/// How [`ringlet_axes`] and [`sweep_helices`] work.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+/// Whether and how the pipeline makes curls.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum CurlMode {
+    /// Strands grow from the points' own directions, as for straight and wavy hair.
+    Off,
+    /// The pipeline decides from the images (`pipeline` docs): curls of the radius, period and
+    /// handedness whose rendering fits the orientation maps best, or none when strands grown from
+    /// the points' directions fit better.
+    #[default]
+    Auto,
+    /// These curls.
+    Fixed(Curl),
+}
+
+impl std::str::FromStr for CurlMode {
+    type Err = String;
+
+    /// `off`, `auto` or `RADIUS_MM,PERIOD_MM,HAND` (HAND 1 right-handed, -1 left-handed).
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "off" => Ok(Self::Off),
+            "auto" => Ok(Self::Auto),
+            _ => {
+                let v: Vec<f32> =
+                    s.split(',').map(|x| x.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| {
+                        format!("curl {s:?}: give off, auto or RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)")
+                    })?;
+                let [r, p, h] = v[..] else {
+                    return Err(format!("curl {s:?}: give three numbers RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)"));
+                };
+                let c = Curl { radius: r / 1000.0, period: p / 1000.0, hand: h };
+                c.validate()?;
+                Ok(Self::Fixed(c))
+            }
+        }
+    }
+}
+
+/// How [`ringlet_axes`] and [`sweep_helices`] work, and which curls `auto` tries.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CurlOptions {
     /// Gaussian sigma of the blur of the raw mesh's normals, metres (the hair surface's scale).
     pub normal_sigma: f32,
@@ -70,6 +109,18 @@ pub struct CurlOptions {
     pub ramp: f32,
     /// Spacing of the swept helix's points, metres.
     pub step: f32,
+    /// `auto`: the pitch angle of the first axes (degrees); the axes are made again at the chosen
+    /// curl's pitch when it differs by more than 3°.
+    pub nominal_pitch_deg: f32,
+    /// `auto`: how much more the ringlet axes must point down than the points' directions (mean -z
+    /// component) for the hair to count as curly.
+    pub min_down_gain: f32,
+    /// `auto`: the radii and periods tried (metres), every pair of them.
+    pub radii: [f32; 3],
+    pub periods: [f32; 3],
+    /// `auto`: the images score every `score_every`-th child in `score_views` views spread evenly.
+    pub score_every: usize,
+    pub score_views: usize,
 }
 
 impl Default for CurlOptions {
@@ -77,7 +128,19 @@ impl Default for CurlOptions {
         // The settings of the session-22 study (README): sigma 25 mm for the normals, 5 mm for the
         // axes, a 20 mm window; sigma 10 mm for the normals gave 43% of the axes within 20°, 25 mm 47%
         // (before the average, which raises it to 65%).
-        Self { normal_sigma: 0.025, axis_sigma: 0.005, centre_window: 0.020, ramp: 0.015, step: 0.001 }
+        Self {
+            normal_sigma: 0.025,
+            axis_sigma: 0.005,
+            centre_window: 0.020,
+            ramp: 0.015,
+            step: 0.001,
+            nominal_pitch_deg: 60.0,
+            min_down_gain: 0.08,
+            radii: [0.004, 0.0065, 0.009],
+            periods: [0.015, 0.022, 0.030],
+            score_every: 10,
+            score_views: 8,
+        }
     }
 }
 
@@ -130,7 +193,8 @@ impl BlurGrid {
     /// The index of the lower corner of `p`'s cell and the eight trilinear weights.
     fn corner_weights(&self, p: Vec3) -> (usize, [f32; 8]) {
         let [nx, ny, nz] = self.dims;
-        let u = ((p - self.lo) / self.cell).clamp(Vec3::ZERO, Vec3::new(nx as f32 - 2.0, ny as f32 - 2.0, nz as f32 - 2.0));
+        let u =
+            ((p - self.lo) / self.cell).clamp(Vec3::ZERO, Vec3::new(nx as f32 - 2.0, ny as f32 - 2.0, nz as f32 - 2.0));
         let i = u.floor();
         let f = u - i;
         let (ix, iy, iz) = (i.x as usize, i.y as usize, i.z as usize);
@@ -196,6 +260,12 @@ impl BlurGrid {
     }
 }
 
+/// The mean downward (-z) component of the directions: ringlets hang, so the right handedness's axes
+/// point down more than the wrong one's (paper curly preset: 0.58 against -0.11, the tangents 0.42).
+pub fn mean_down(points: &OrientedPoints) -> f32 {
+    points.directions.iter().map(|d| -d.z).sum::<f32>() / points.len().max(1) as f32
+}
+
 /// Rotation of `v` about the unit `axis` by `angle` radians (right-handed).
 fn rotate(v: Vec3, axis: Vec3, angle: f32) -> Vec3 {
     let (s, c) = angle.sin_cos();
@@ -221,17 +291,9 @@ pub fn ringlet_axes(points: &OrientedPoints, raw: &TriMesh, curl: &Curl, opts: &
         .collect();
     let acell = (opts.axis_sigma / 2.0).max(0.001);
     let agrid = BlurGrid::build(&points.positions, &turned, &points.positions, acell, opts.axis_sigma)?;
-    let directions = points
-        .positions
-        .par_iter()
-        .zip(&turned)
-        .map(|(p, t)| agrid.sample(*p).try_normalize().unwrap_or(*t))
-        .collect();
-    Some(OrientedPoints {
-        positions: points.positions.clone(),
-        directions,
-        confidence: points.confidence.clone(),
-    })
+    let directions =
+        points.positions.par_iter().zip(&turned).map(|(p, t)| agrid.sample(*p).try_normalize().unwrap_or(*t)).collect();
+    Some(OrientedPoints { positions: points.positions.clone(), directions, confidence: points.confidence.clone() })
 }
 
 /// A deterministic phase in [0, 2π) for strand `i`.
@@ -248,7 +310,12 @@ fn phase(seed: u64, i: usize) -> f32 {
 /// the root is kept) resampled every `opts.step`, and the helix is swept about it in a frame carried
 /// along it, at a random phase per strand (from `seed`), growing to full radius over `opts.ramp`.
 /// Strands with fewer than 3 samples are kept as they are.
-pub fn sweep_helices(strands: &StrandSet, curl: &Curl, opts: &CurlOptions, seed: u64) -> Result<StrandSet, StrandError> {
+pub fn sweep_helices(
+    strands: &StrandSet,
+    curl: &Curl,
+    opts: &CurlOptions,
+    seed: u64,
+) -> Result<StrandSet, StrandError> {
     let step = opts.step;
     let out: Vec<Vec<Vec3>> = (0..strands.num_strands())
         .into_par_iter()
@@ -336,6 +403,17 @@ mod tests {
     }
 
     #[test]
+    fn curl_modes_parse_and_bad_ones_say_what_to_give() {
+        assert_eq!("off".parse::<CurlMode>(), Ok(CurlMode::Off));
+        assert_eq!("auto".parse::<CurlMode>(), Ok(CurlMode::Auto));
+        assert_eq!(" 6.5, 22 ,1".parse::<CurlMode>(), Ok(CurlMode::Fixed(CURL)));
+        assert!("6.5,22".parse::<CurlMode>().unwrap_err().contains("three numbers"));
+        assert!("6.5,0,1".parse::<CurlMode>().unwrap_err().contains("period"));
+        assert!("0,22,1".parse::<CurlMode>().unwrap_err().contains("radius"));
+        assert!("6.5,22,0".parse::<CurlMode>().unwrap_err().contains("handedness"));
+    }
+
+    #[test]
     fn pitch_angle_of_the_paper_curls() {
         assert!((CURL.pitch_angle().to_degrees() - 61.7).abs() < 0.1);
     }
@@ -360,7 +438,11 @@ mod tests {
         // The hair surface: a plane x = r facing +x, in 5 mm quads.
         let (ny, nz) = (41usize, 61usize);
         let vertices: Vec<Vec3> = (0..nz)
-            .flat_map(|iz| (0..ny).map(move |iy| Vec3::new(CURL.radius, -0.1 + 0.005 * iy as f32, 0.09 - 0.005 * (nz - 1 - iz) as f32 - 0.15)))
+            .flat_map(|iz| {
+                (0..ny).map(move |iy| {
+                    Vec3::new(CURL.radius, -0.1 + 0.005 * iy as f32, 0.09 - 0.005 * (nz - 1 - iz) as f32 - 0.15)
+                })
+            })
             .collect();
         let mut triangles = Vec::new();
         for iz in 0..nz - 1 {
@@ -375,7 +457,8 @@ mod tests {
         assert!(raw.face_normal(0).x > 0.99);
         let before: f32 = points.directions.iter().map(|d| d.dot(-Vec3::Z)).sum::<f32>() / n as f32;
         let axes = ringlet_axes(&points, &raw, &CURL, &CurlOptions::default()).unwrap();
-        let after: Vec<f32> = axes.directions.iter().map(|d| d.dot(-Vec3::Z).clamp(-1.0, 1.0).acos().to_degrees()).collect();
+        let after: Vec<f32> =
+            axes.directions.iter().map(|d| d.dot(-Vec3::Z).clamp(-1.0, 1.0).acos().to_degrees()).collect();
         let within = after.iter().filter(|a| **a < 20.0).count() as f32 / n as f32;
         let mut sorted = after.clone();
         sorted.sort_by(f32::total_cmp);

@@ -9,12 +9,13 @@
 //! - [`roots`]: the scalp with S(p_s), and roots on it.
 //! - [`laplace`]: the interior flow of the hair volume by Laplace's equation.
 //! - [`grow`]: guide strands grown through the flow, children interpolated.
+//! - [`curl`]: curly hair: ringlet axes from the directed points, helices swept about grown strands.
 //! - [`hull`]: the visual hull of the hair; strands cut where a view sees no hair.
 //! - [`pipeline`]: all of the above in order, with outputs and metrics ([`pipeline::reconstruct`]).
 //! - [`metrics`]: per-stage metrics against ground truth.
 
-pub mod direction;
 pub mod curl;
+pub mod direction;
 pub mod dr;
 pub mod grow;
 pub mod hull;

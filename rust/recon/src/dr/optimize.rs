@@ -13,7 +13,7 @@
 
 use glam::Vec3;
 use hairrecon_core::{Bvh, StrandSet};
-use hairrecon_raster::{AaMethod, Image, RasterSettings, Renderer, SegmentShape, Width};
+use hairrecon_raster::{channel, AaMethod, Image, RasterSettings, Renderer, SegmentShape, Width};
 use rayon::prelude::*;
 
 use super::adam::Adam;
@@ -94,6 +94,51 @@ pub fn regularizer_factor(targets: &DrTargets, num_points: usize) -> f32 {
     let area: f64 =
         targets.views.iter().map(|v| v.mask.iter().map(|&m| m as f64).sum::<f64>()).sum::<f64>() / nv as f64;
     (area / num_points.max(1) as f64) as f32
+}
+
+/// How well `set`'s rendered orientation fits the targets' orientation maps, whatever its coverage:
+/// `Σ κ ‖ĉ_o − ĉ_cov t‖² / Σ κ ĉ_cov²` over the pixels of `views` (the orientation residual of `L_o`
+/// per unit of rendered coverage; 0 where every rendered pixel has the map's orientation, 2 where it
+/// is perpendicular). `L_o` itself is a sum over the pixels the strands cover, so a set that covers
+/// less scores lower; this ratio compares sets of different coverage.
+pub fn orientation_misfit(
+    set: &StrandSet,
+    targets: &DrTargets,
+    views: &[usize],
+    opts: &DrOptions,
+) -> Result<f64, DrError> {
+    let segs = segments(set.offsets());
+    let settings = RasterSettings { width: Width::World(opts.width_m), shape: SegmentShape::Quad, direction_3d: false };
+    let sums: Vec<Result<(f64, f64), DrError>> = views
+        .par_iter()
+        .map(|&v| {
+            let view = &targets.views[v];
+            let mut r = Renderer::new(AaMethod::Ours);
+            r.forward(&view.camera, set.points(), &segs, settings)?;
+            let img = &r.aa.image;
+            let nch = img.channels;
+            let (mut num, mut den) = (0.0f64, 0.0f64);
+            for p in 0..img.num_pixels() {
+                if view.head_depth.as_ref().is_some_and(|h| r.buffers.depth[p] > h[p]) {
+                    continue;
+                }
+                let c = &img.data[p * nch..p * nch + 3];
+                let (cov, oc, os) = (c[channel::COVERAGE], c[channel::COS2], c[channel::SIN2]);
+                let [tc, ts, conf] = view.orientation[p];
+                let (rc, rs) = (oc - cov * tc, os - cov * ts);
+                num += (conf * (rc * rc + rs * rs)) as f64;
+                den += (conf * cov * cov) as f64;
+            }
+            Ok((num, den))
+        })
+        .collect();
+    let (mut num, mut den) = (0.0, 0.0);
+    for s in sums {
+        let (n, d) = s?;
+        num += n;
+        den += d;
+    }
+    Ok(if den > 0.0 { num / den } else { f64::INFINITY })
 }
 
 impl Evaluator {
