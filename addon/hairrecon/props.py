@@ -96,6 +96,22 @@ class HairreconSettings(bpy.types.PropertyGroup):
     hull_trim: BoolProperty(name="Cut at Visual Hull", default=True,
                             description="Before optimizing, cut each grown strand where a photo sees it outside its "
                                         "hair mask (and not behind the head); off keeps the strands whole")
+    curl: EnumProperty(
+        name="Curls",
+        items=(
+            ("AUTO", "Auto", "The photos decide whether the hair is curly and which ringlets fit (radius, period, "
+                             "handedness)"),
+            ("OFF", "Off", "Strands follow the hair's visible direction, as for straight and wavy hair"),
+            ("CUSTOM", "Custom", "Ringlets of the radius, period and handedness given below"),
+        ),
+        default="AUTO",
+    )
+    curl_radius_mm: FloatProperty(name="Curl Radius (mm)", default=6.5, min=0.5, max=50.0,
+                                  description="Radius of the ringlets (Custom curls)")
+    curl_period_mm: FloatProperty(name="Curl Period (mm)", default=22.0, min=2.0, max=200.0,
+                                  description="Length along the ringlet per turn (Custom curls)")
+    curl_left: BoolProperty(name="Left-Handed Curls", default=False,
+                            description="Custom curls turn left-handed from root to tip (off: right-handed)")
     stop_after: StringProperty(
         name="Stop After",
         description="Advanced: stop the pipeline after this stage: orient2d, orient3d, direction, init (empty = run it all)",

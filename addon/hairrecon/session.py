@@ -52,6 +52,13 @@ def _accepts(fn, name: str) -> bool:
         return False
 
 
+def curl_option(mode: str, radius_mm: float, period_mm: float, left: bool) -> str:
+    """The library's `curl` argument for the panel's Curls settings."""
+    if mode == "CUSTOM":
+        return f"{radius_mm:g},{period_mm:g},{-1 if left else 1}"
+    return "off" if mode == "OFF" else "auto"
+
+
 class Session:
     """A prepared capture and its running (or finished) job."""
 
@@ -153,6 +160,8 @@ class Session:
             log("this hairrecon library has no strand optimization (DR); the grown strands are the result")
         if _accepts(getattr(hr, "Reconstruction", None), "hull_trim"):
             options["hull_trim"] = bool(s.hull_trim)
+        if _accepts(getattr(hr, "Reconstruction", None), "curl"):
+            options["curl"] = curl_option(s.curl, s.curl_radius_mm, s.curl_period_mm, s.curl_left)
         session = cls(capture_dir, out_dir, keep, options, surface, group)
         session.root = root
         return session

@@ -73,6 +73,11 @@ class HAIRRECON_PT_advanced(bpy.types.Panel):
         s = context.scene.hairrecon
         layout.prop(s, "seed")
         layout.prop(s, "hull_trim")
+        layout.prop(s, "curl")
+        if s.curl == "CUSTOM":
+            layout.prop(s, "curl_radius_mm")
+            layout.prop(s, "curl_period_mm")
+            layout.prop(s, "curl_left")
         layout.prop(s, "stop_after")
 
 

@@ -476,6 +476,16 @@ def task_pipeline(p):
             out["hull_switch"][f"session_{flag}"] = sess.options.get("hull_trim")
         finally:
             sess.cleanup()
+    # the panel's Curls settings reach the keyword the add-on passes
+    out["curl_switch"] = {"panel_default": s.curl}
+    for mode, left in (("AUTO", False), ("OFF", False), ("CUSTOM", True)):
+        s.curl, s.curl_radius_mm, s.curl_period_mm, s.curl_left = mode, 5.5, 18.0, left
+        sess = session_mod.Session.prepare(bpy.context)
+        try:
+            out["curl_switch"][mode] = sess.options.get("curl")
+        finally:
+            sess.cleanup()
+    s.curl = "AUTO"
     # Import Capture sets the head mesh beside the scalp object; the capture the add-on writes must
     # carry it (the visual hull and DR hide what lies behind the head, the output stays out of it)
     hd = Path(p["workdir"]) / "session_head"

@@ -276,6 +276,14 @@ def test_hull_switch_reaches_the_pipeline(pipeline):
     assert h["session_False"] is False and h["session_True"] is True, h
 
 
+def test_curl_settings_reach_the_library(pipeline):
+    c = pipeline["curl_switch"]
+    assert c["panel_default"] == "AUTO"
+    assert c["AUTO"] == "auto" and c["OFF"] == "off", c
+    # custom: radius and period in mm, left-handed as -1 (the form `--curl` and curl= parse)
+    assert c["CUSTOM"] == "5.5,18,-1", c
+
+
 def test_the_head_mesh_reaches_the_capture(pipeline):
     # the imported scene has a scalp object AND a head; the head must reach the library too (without it
     # the visual hull cut 69% of the demo's strand points and the run kept them whole)
