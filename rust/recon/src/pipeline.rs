@@ -470,9 +470,7 @@ pub fn reconstruct(
     };
     // Growth from some directed points: the flow (saved as flow.bin by the caller), the guides
     // and the children.
-    let grow_from = |pts: &OrientedPoints,
-                     metrics: &mut serde_json::Map<String, serde_json::Value>|
-     -> Result<(crate::laplace::FlowField, StrandSet, StrandSet), ReconError> {
+    let grow_from = |pts: &OrientedPoints, metrics: &mut Metrics| -> Result<Grown, ReconError> {
         let (flow, stats) = solve_flow(&raw, &inner, &scalp, pts, &opts.laplace, progress)?;
         metrics.insert("laplace_stats".into(), serde_json::to_value(stats).unwrap_or_default());
         let trace =
@@ -730,9 +728,10 @@ fn choose_curl(
     Ok(best.1)
 }
 
-/// The files of the strand stages, removed at the start of a run that writes strands.
-const STRAND_OUTPUTS: [&str; 6] =
-    ["strands.hair", "guides.hair", "init_strands.hair", "init_guides.hair", "loss.csv", "loss.png"];
+/// The files of the strand stages (and the curl axes of [`crate::curl`]), removed at the start of a run
+/// that writes strands.
+const STRAND_OUTPUTS: [&str; 7] =
+    ["strands.hair", "guides.hair", "init_strands.hair", "init_guides.hair", "loss.csv", "loss.png", "points_axes.ply"];
 
 /// Reloads oriented points saved by a stage (`points3d.ply` or `points_directed.ply`).
 pub fn load_points(out_dir: &Path, name: &str) -> Result<OrientedPoints, ReconError> {
