@@ -12,12 +12,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use glam::Vec3;
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands};
 use hairrecon_core::{Bvh, StrandSet};
 use hairrecon_recon::curl::{sweep_helices, Curl, CurlOptions};
-use hairrecon_recon::dr::optimize::{orientation_misfit, Evaluator};
+use hairrecon_recon::dr::optimize::{image_terms, orientation_misfit};
 use hairrecon_recon::dr::{DrOptions, DrTargets};
 use hairrecon_recon::pipeline::load_orient2d;
 use hairrecon_recon::progress::NoProgress;
@@ -75,19 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let views: Vec<usize> = (0..nviews.min(nv)).map(|i| i * nv / nviews.min(nv)).collect();
     println!("{} strands, views {views:?}, targets {:.1} s", strands.num_strands(), t.elapsed().as_secs_f64());
     let opts = DrOptions::default();
-    let score = |set: &StrandSet| -> Result<(f64, f64), Box<dyn std::error::Error>> {
-        let (x, offsets) = (set.points(), set.offsets());
-        let mut ev = Evaluator::new(x, offsets, None, &targets, &opts);
-        let mut g = vec![Vec3::ZERO; x.len()];
-        let (mut lm, mut lo) = (0.0, 0.0);
-        for chunk in views.chunks(opts.views_per_step.max(1)) {
-            let t = ev.evaluate(x, offsets, None, &targets, chunk, &opts, &mut g)?;
-            let [m, o, _, _] = t.values();
-            lm += m * chunk.len() as f64;
-            lo += o * chunk.len() as f64;
-        }
-        Ok((lm / views.len() as f64, lo / views.len() as f64))
-    };
+    let score = |set: &StrandSet| image_terms(set, &targets, &views, &opts);
     let (m, o) = score(&strands)?;
     println!("{:<24} {:>10} {:>10} {:>8}", "set", "L_m", "L_o", "misfit");
     println!(

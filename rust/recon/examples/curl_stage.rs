@@ -14,14 +14,10 @@ use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands};
-use hairrecon_recon::curl::{ringlet_axes, Curl, CurlOptions};
+use hairrecon_recon::curl::{mean_down, ringlet_axes, Curl, CurlOptions};
 use hairrecon_recon::metrics::{gt_axes, score_axes};
 use hairrecon_recon::pipeline::load_points;
 use hairrecon_recon::points3d::OrientedPoints;
-
-fn down(p: &OrientedPoints) -> f32 {
-    p.directions.iter().map(|d| -d.z).sum::<f32>() / p.len().max(1) as f32
-}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -61,7 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => None,
     };
     let report = |name: &str, p: &OrientedPoints| {
-        print!("{name:<28} down {:6.3}", down(p));
+        print!("{name:<28} down {:6.3}", mean_down(p));
         if let Some(g) = &gt {
             let s = score_axes(&p.positions, &p.directions, g, 0.002);
             print!(

@@ -10,11 +10,10 @@
 
 use std::path::PathBuf;
 
-use glam::Vec3;
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands};
 use hairrecon_core::Bvh;
-use hairrecon_recon::dr::optimize::Evaluator;
+use hairrecon_recon::dr::optimize::image_terms;
 use hairrecon_recon::dr::{DrOptions, DrTargets};
 use hairrecon_recon::orient2d::OrientationMap;
 use hairrecon_recon::pipeline::{load_gt_orient2d, load_orient2d};
@@ -55,17 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             PathBuf::from(s)
         };
         let set = read_strands(&path)?;
-        let (x, offsets) = (set.points(), set.offsets());
-        let mut ev = Evaluator::new(x, offsets, None, &targets, &opts);
-        let mut g = vec![Vec3::ZERO; x.len()];
-        let (mut lm, mut lo) = (0.0f64, 0.0f64);
-        for chunk in all_views.chunks(opts.views_per_step.max(1)) {
-            let t = ev.evaluate(x, offsets, None, &targets, chunk, &opts, &mut g)?;
-            let [m, o, _, _] = t.values();
-            lm += m * chunk.len() as f64;
-            lo += o * chunk.len() as f64;
-        }
-        let (lm, lo) = (lm / nv as f64, lo / nv as f64);
+        let (lm, lo) = image_terms(&set, &targets, &all_views, &opts)?;
         println!("{:<48} {:>10} {:>12.2} {:>12.2} {:>10.2}", s, set.num_strands(), lm, lo, lm + lo);
     }
     Ok(())

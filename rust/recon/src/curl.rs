@@ -220,17 +220,15 @@ impl BlurGrid {
         }
         let r = (3.0 * s).ceil() as isize;
         let kernel: Vec<f32> = (-r..=r).map(|d| (-(d * d) as f32 / (2.0 * s * s)).exp()).collect();
-        let [nx, ny, nz] = self.dims;
+        let [nx, ny, _] = self.dims;
         let strides = [1, nx, nx * ny];
         for axis in 0..3 {
             let len = self.dims[axis];
             let stride = strides[axis];
-            // Every line along `axis`: its first index.
-            let starts: Vec<usize> = (0..nx * ny * nz)
-                .filter(|&i| {
-                    let c = [i % nx, (i / nx) % ny, i / (nx * ny)];
-                    c[axis] == 0
-                })
+            // Every line along `axis`: its first index (the other two coordinates run over their range).
+            let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+            let starts: Vec<usize> = (0..self.dims[a] * self.dims[b])
+                .map(|i| (i % self.dims[a]) * strides[a] + (i / self.dims[a]) * strides[b])
                 .collect();
             let src = self.data.clone();
             let lines: Vec<(usize, Vec<Vec3>)> = starts

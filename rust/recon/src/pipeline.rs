@@ -484,7 +484,6 @@ pub fn reconstruct(
     };
     let mut dr_targets: Option<DrTargets> = None;
     let (guides, children) = if opts.strand_init {
-        let (flow, guides, children) = grow_from(&directed, &mut metrics)?;
         let curl = match opts.curl {
             CurlMode::Off => None,
             CurlMode::Fixed(c) => Some(c),
@@ -496,11 +495,9 @@ pub fn reconstruct(
                 c
             }
         };
-        match curl {
-            None => {
-                flow.save(&out_dir.join("flow.bin"))?;
-                (guides, children)
-            }
+        // One growth: from the points' own directions, or with curls along the ringlet axes.
+        let axes = match curl {
+            None => None,
             Some(c) => {
                 progress.update("init", 0.7, &format!("curls: growing along the ringlets ({c:?})"));
                 let axes = ringlet_axes(&directed, raw.mesh(), &c, &opts.curl_options).ok_or(ReconError::CurlGrid)?;
@@ -510,8 +507,14 @@ pub fn reconstruct(
                     let s = score_axes(&axes.positions, &axes.directions, &gt_ax, MATCH_DIST);
                     metrics.insert("axes".into(), serde_json::to_value(s).unwrap_or_default());
                 }
-                let (flow, guides, children) = grow_from(&axes, &mut metrics)?;
-                flow.save(&out_dir.join("flow.bin"))?;
+                Some(axes)
+            }
+        };
+        let (flow, guides, children) = grow_from(axes.as_ref().unwrap_or(&directed), &mut metrics)?;
+        flow.save(&out_dir.join("flow.bin"))?;
+        match curl {
+            None => (guides, children),
+            Some(c) => {
                 metrics.insert(
                     "curl".into(),
                     json!({"radius_mm": c.radius * 1e3, "period_mm": c.period * 1e3, "hand": c.hand}),

@@ -96,6 +96,28 @@ pub fn regularizer_factor(targets: &DrTargets, num_points: usize) -> f32 {
     (area / num_points.max(1) as f64) as f32
 }
 
+/// The mean image terms (`L_m`, `L_o`) of `set` rendered in `views`, as DR's first step would see
+/// them, without optimizing.
+pub fn image_terms(
+    set: &StrandSet,
+    targets: &DrTargets,
+    views: &[usize],
+    opts: &DrOptions,
+) -> Result<(f64, f64), DrError> {
+    let (x, offsets) = (set.points(), set.offsets());
+    let mut ev = Evaluator::new(x, offsets, None, targets, opts);
+    let mut g = vec![Vec3::ZERO; x.len()];
+    let (mut lm, mut lo) = (0.0, 0.0);
+    for chunk in views.chunks(opts.views_per_step.max(1)) {
+        let t = ev.evaluate(x, offsets, None, targets, chunk, opts, &mut g)?;
+        let [m, o, _, _] = t.values();
+        lm += m * chunk.len() as f64;
+        lo += o * chunk.len() as f64;
+    }
+    let n = views.len().max(1) as f64;
+    Ok((lm / n, lo / n))
+}
+
 /// How well `set`'s rendered orientation fits the targets' orientation maps, whatever its coverage:
 /// `Σ κ ‖ĉ_o − ĉ_cov t‖² / Σ κ ĉ_cov²` over the pixels of `views` (the orientation residual of `L_o`
 /// per unit of rendered coverage; 0 where every rendered pixel has the map's orientation, 2 where it
