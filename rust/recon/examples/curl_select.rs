@@ -7,7 +7,9 @@
 //! (`DIR`: a `hairrecon reconstruct` output with `orient2d/`) keys: `every` (strand subset, 5),
 //! `views` (number of views, evenly spread, 12), `radii` and `periods` (mm, comma-separated);
 //! `plain=PATH` also scores those strands (e.g. the init grown from the points' own directions);
-//! `out=PATH radius=R period=P hand=H` writes all the strands swept with that curl instead.
+//! `out=PATH radius=R period=P hand=H` writes all the strands swept with that curl instead, at
+//! phases fitted to `DIR/points_directed.ply` with `fit=1` (`fit_radius` mm, `fit_angle` degrees,
+//! `fit_phases`), else at random phases.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -15,7 +17,7 @@ use std::time::Instant;
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands};
 use hairrecon_core::{Bvh, StrandSet};
-use hairrecon_recon::curl::{sweep_helices, Curl, CurlOptions};
+use hairrecon_recon::curl::{fit_phases, sweep_helices, sweep_helices_at, Curl, CurlOptions, PointSupport};
 use hairrecon_recon::dr::optimize::{image_terms, orientation_misfit};
 use hairrecon_recon::dr::{DrOptions, DrTargets};
 use hairrecon_recon::pipeline::load_orient2d;
@@ -38,6 +40,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut out: Option<(PathBuf, Curl)> = None;
     let mut plain: Option<PathBuf> = None;
     let mut one = Curl { radius: 0.0065, period: 0.022, hand: 1.0 };
+    let mut fit = false;
+    let mut co = CurlOptions::default();
     for kv in &args[3..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
         match k {
@@ -50,13 +54,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "radius" => one.radius = v.parse::<f32>()? / 1000.0,
             "period" => one.period = v.parse::<f32>()? / 1000.0,
             "hand" => one.hand = v.parse()?,
+            "fit" => fit = v == "1",
+            "fit_radius" => co.fit_radius = v.parse::<f32>()? / 1000.0,
+            "fit_angle" => co.fit_angle_deg = v.parse()?,
+            "fit_phases" => co.fit_phases = v.parse()?,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
     let all = read_strands(&args[2])?;
     if let Some((path, _)) = out {
         one.validate()?;
-        let swept = sweep_helices(&all, &one, &CurlOptions::default(), 0)?;
+        let t = Instant::now();
+        let phases = if fit {
+            let pts = hairrecon_recon::pipeline::load_points(&dir, "points_directed.ply")?;
+            let support = PointSupport::new(&pts, co.fit_radius, co.fit_angle_deg).ok_or("grid too large")?;
+            let ph = fit_phases(&all, &one, &co, &support);
+            let n = ph.iter().filter(|p| p.is_some()).count();
+            println!("phases fitted for {n} of {} strands ({:.1} s)", ph.len(), t.elapsed().as_secs_f64());
+            Some(ph)
+        } else {
+            None
+        };
+        let swept = sweep_helices_at(&all, &one, &co, 0, phases.as_deref())?;
         hairrecon_core::formats::write_strands(&path, &swept)?;
         println!("{} strands swept with {one:?} -> {}", swept.num_strands(), path.display());
         return Ok(());
@@ -90,7 +109,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (m, o) = score(&set)?;
         println!("{:<24} {:>10.2} {:>10.2} {:>8.4}", "plain", m, o, orientation_misfit(&set, &targets, &views, &opts)?);
     }
-    let co = CurlOptions::default();
     for hand in [1.0f32, -1.0] {
         for &r in &radii {
             for &p in &periods {

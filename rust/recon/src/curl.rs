@@ -121,6 +121,11 @@ pub struct CurlOptions {
     /// `auto`: the images score every `score_every`-th child in `score_views` views spread evenly.
     pub score_every: usize,
     pub score_views: usize,
+    /// [`fit_phases`] (a study, not in the pipeline: README, Reconstruction, session 23): how many
+    /// phases are tried, and the radius (metres) and angle (degrees) of a point's support.
+    pub fit_phases: usize,
+    pub fit_radius: f32,
+    pub fit_angle_deg: f32,
 }
 
 impl Default for CurlOptions {
@@ -140,6 +145,9 @@ impl Default for CurlOptions {
             periods: [0.015, 0.022, 0.030],
             score_every: 10,
             score_views: 8,
+            fit_phases: 16,
+            fit_radius: 0.0015,
+            fit_angle_deg: 20.0,
         }
     }
 }
@@ -314,17 +322,148 @@ pub fn sweep_helices(
     opts: &CurlOptions,
     seed: u64,
 ) -> Result<StrandSet, StrandError> {
+    sweep_helices_at(strands, curl, opts, seed, None)
+}
+
+/// [`sweep_helices`] at the given phases (from [`fit_phases`]; a strand without one gets the random
+/// phase).
+pub fn sweep_helices_at(
+    strands: &StrandSet,
+    curl: &Curl,
+    opts: &CurlOptions,
+    seed: u64,
+    phases: Option<&[Option<f32>]>,
+) -> Result<StrandSet, StrandError> {
     let step = opts.step;
     let out: Vec<Vec<Vec3>> = (0..strands.num_strands())
         .into_par_iter()
         .map(|i| {
             let s = strands.strand(i);
             let Some(c) = centreline(s, opts.centre_window, step) else { return s.to_vec() };
-            helix_about(&c, curl, opts, phase(seed, i))
+            let phi = phases.and_then(|p| p.get(i).copied().flatten()).unwrap_or_else(|| phase(seed, i));
+            helix_about(&c, curl, opts, phi)
         })
         .collect();
     let counts = out.iter().map(|s| s.len() as u32).collect();
     StrandSet::new(out.into_iter().flatten().collect(), counts)
+}
+
+/// The directed points, bucketed by a grid of cubes of side `radius`, for [`fit_phases`]: how well a
+/// helix point and its tangent are supported by the points near it.
+#[derive(Debug)]
+pub struct PointSupport {
+    radius: f32,
+    lo: Vec3,
+    dims: [usize; 3],
+    /// Per cube, the index of its first point in `pts` (one more entry than cubes).
+    first: Vec<u32>,
+    pts: Vec<(Vec3, Vec3, f32)>,
+    min_cos: f32,
+}
+
+impl PointSupport {
+    /// `None` when the grid would pass 64 million cubes (a scene far wider than a head).
+    pub fn new(points: &OrientedPoints, radius: f32, max_angle_deg: f32) -> Option<Self> {
+        let (lo, hi) =
+            points.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        if !(lo.is_finite() && hi.is_finite() && radius > 0.0) {
+            return None;
+        }
+        let n = ((hi - lo) / radius).floor();
+        let dims = [n.x as usize + 1, n.y as usize + 1, n.z as usize + 1];
+        if dims.iter().product::<usize>() > 64_000_000 {
+            return None;
+        }
+        let mut s =
+            Self { radius, lo, dims, first: Vec::new(), pts: Vec::new(), min_cos: max_angle_deg.to_radians().cos() };
+        let mut keyed: Vec<(u32, u32)> =
+            points.positions.iter().enumerate().map(|(i, p)| (s.cube(*p).unwrap_or(0) as u32, i as u32)).collect();
+        keyed.sort_unstable();
+        let ncubes = dims[0] * dims[1] * dims[2];
+        s.first = vec![0u32; ncubes + 1];
+        for &(c, _) in &keyed {
+            s.first[c as usize + 1] += 1;
+        }
+        for c in 0..ncubes {
+            s.first[c + 1] += s.first[c];
+        }
+        s.pts = keyed
+            .iter()
+            .map(|&(_, i)| {
+                let i = i as usize;
+                (points.positions[i], points.directions[i], points.confidence[i])
+            })
+            .collect();
+        Some(s)
+    }
+
+    fn cube(&self, p: Vec3) -> Option<usize> {
+        let c = ((p - self.lo) / self.radius).floor();
+        let [i, j, k] = [c.x, c.y, c.z].map(|v| v as isize);
+        let [nx, ny, nz] = self.dims.map(|d| d as isize);
+        (i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz).then(|| (i + j * nx + k * nx * ny) as usize)
+    }
+
+    /// The support of a point `p` with unit tangent `t`: the sum over the points within `radius` of
+    /// confidence × (1 - d²/radius²) × how far their (undirected) direction lies inside the angle
+    /// (1 when parallel, 0 at the angle and beyond).
+    pub fn support(&self, p: Vec3, t: Vec3) -> f32 {
+        let c = ((p - self.lo) / self.radius).floor();
+        let [ci, cj, ck] = [c.x, c.y, c.z].map(|v| v as isize);
+        let [nx, ny, nz] = self.dims.map(|d| d as isize);
+        let r2 = self.radius * self.radius;
+        let mut sum = 0.0;
+        for k in (ck - 1).max(0)..=(ck + 1).min(nz - 1) {
+            for j in (cj - 1).max(0)..=(cj + 1).min(ny - 1) {
+                let (i0, i1) = ((ci - 1).max(0), (ci + 1).min(nx - 1));
+                if i0 > i1 {
+                    continue;
+                }
+                let row = (j * nx + k * nx * ny) as usize;
+                let (a, b) = (self.first[row + i0 as usize] as usize, self.first[row + i1 as usize + 1] as usize);
+                for (q, d, w) in &self.pts[a..b] {
+                    let d2 = (*q - p).length_squared();
+                    if d2 < r2 {
+                        let cos = d.dot(t).abs();
+                        if cos > self.min_cos {
+                            sum += w * (1.0 - d2 / r2) * (cos - self.min_cos) / (1.0 - self.min_cos);
+                        }
+                    }
+                }
+            }
+        }
+        sum
+    }
+}
+
+/// The phase of each strand's helix that the directed points support best, or `None` where no
+/// phase has support (the ringlet's hidden side). Every strand's centreline (as [`sweep_helices`]
+/// makes it) gets helices at `opts.fit_phases` phases; each is scored by the summed
+/// [`PointSupport::support`] of its points. The phase is one per strand: a ringlet's strands curl in
+/// step, and the visible side fixes it.
+pub fn fit_phases(strands: &StrandSet, curl: &Curl, opts: &CurlOptions, support: &PointSupport) -> Vec<Option<f32>> {
+    let n = opts.fit_phases.max(1);
+    (0..strands.num_strands())
+        .into_par_iter()
+        .map(|i| {
+            let c = centreline(strands.strand(i), opts.centre_window, opts.step)?;
+            let mut best: Option<(f32, f32)> = None;
+            for j in 0..n {
+                let phi = j as f32 * std::f32::consts::TAU / n as f32;
+                let h = helix_about(&c, curl, opts, phi);
+                let mut score = 0.0;
+                for k in 1..h.len() - 1 {
+                    if let Some(t) = (h[k + 1] - h[k - 1]).try_normalize() {
+                        score += support.support(h[k], t);
+                    }
+                }
+                if score > 0.0 && best.is_none_or(|(s, _)| score > s) {
+                    best = Some((score, phi));
+                }
+            }
+            best.map(|b| b.1)
+        })
+        .collect()
 }
 
 /// A strand's centreline: the strand resampled every `step`, each sample replaced by the mean of the
@@ -502,5 +641,38 @@ mod tests {
         // The root stays where it was; same seed, same output.
         assert!(h[0].distance(Vec3::ZERO) < 1e-6);
         assert_eq!(sweep_helices(&set, &CURL, &CurlOptions::default(), 7).unwrap(), out);
+    }
+
+    #[test]
+    fn fitted_phase_puts_the_helix_on_its_visible_side() {
+        // A ringlet about a straight centreline along -z; the points: its side facing +x (x > 0.3 r)
+        // with tangents. Fitting phases to them recovers the ringlet's own phase within one step of
+        // the 16 tried; a strand on the far side of no points gets none.
+        let line: Vec<Vec3> = (0..=100).map(|k| Vec3::new(0.0, 0.0, -0.002 * k as f32)).collect();
+        let set = StrandSet::new(line.clone(), vec![101]).unwrap();
+        let opts = CurlOptions::default();
+        let c = centreline(&line, opts.centre_window, opts.step).unwrap();
+        let truth = 2.0f32;
+        let h = helix_about(&c, &CURL, &opts, truth);
+        let (mut positions, mut directions) = (Vec::new(), Vec::new());
+        for k in 1..h.len() - 1 {
+            if h[k].x > 0.3 * CURL.radius {
+                positions.push(h[k]);
+                directions.push((h[k + 1] - h[k - 1]).normalize());
+            }
+        }
+        let n = positions.len();
+        let points = OrientedPoints { positions, directions, confidence: vec![1.0; n] };
+        let support = PointSupport::new(&points, opts.fit_radius, opts.fit_angle_deg).unwrap();
+        let far = StrandSet::new(line.iter().map(|p| *p + Vec3::new(0.5, 0.0, 0.0)).collect(), vec![101]).unwrap();
+        let got = fit_phases(&set, &CURL, &opts, &support)[0].unwrap();
+        let d = (got - truth).rem_euclid(std::f32::consts::TAU);
+        let d = d.min(std::f32::consts::TAU - d);
+        assert!(d <= std::f32::consts::TAU / 32.0 + 1e-4, "fitted {got}, truth {truth}");
+        assert_eq!(fit_phases(&far, &CURL, &opts, &support), vec![None]);
+        // Swept at the fitted phase, the helix lies on the points.
+        let swept = sweep_helices_at(&set, &CURL, &opts, 0, Some(&[Some(got)])).unwrap();
+        let on = points.positions.iter().filter(|q| swept.strand(0).iter().any(|p| p.distance(**q) < 1e-3)).count();
+        assert_eq!(on, n);
     }
 }
