@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands};
-use hairrecon_recon::curl::{mean_down, ringlet_axes, Curl, CurlOptions};
+use hairrecon_recon::curl::{hang, mean_down, ringlet_axes, Curl, CurlOptions};
 use hairrecon_recon::metrics::{gt_axes, score_axes};
 use hairrecon_recon::pipeline::load_points;
 use hairrecon_recon::points3d::OrientedPoints;
@@ -73,6 +73,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let axes = ringlet_axes(&points, &raw, &curl, &opts).ok_or("the grid would be too large")?;
     println!("axes: {:.2} s", t.elapsed().as_secs_f64());
     report(&format!("axes {curl:?}"), &axes);
+    let mut hung = axes.clone();
+    hang(&mut hung);
+    report("axes, hung (curl::hang)", &hung);
     if scan {
         for hand in [1.0f32, -1.0] {
             for deg in [20.0f32, 40.0, 50.0, 55.0, 62.0, 70.0, 80.0] {

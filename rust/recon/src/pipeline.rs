@@ -35,7 +35,7 @@ use hairrecon_core::{Bvh, StrandSet};
 use serde_json::json;
 use thiserror::Error;
 
-use crate::curl::{mean_down, ringlet_axes, sweep_helices, Curl, CurlMode, CurlOptions};
+use crate::curl::{hang, mean_down, ringlet_axes, sweep_helices, Curl, CurlMode, CurlOptions};
 use crate::direction::{global_directions, gravity_directions, DirectionParams};
 use crate::dr::optimize::orientation_misfit;
 use crate::dr::{optimize as dr_optimize, DrError, DrOptions, DrTargets};
@@ -500,7 +500,11 @@ pub fn reconstruct(
             None => None,
             Some(c) => {
                 progress.update("init", 0.7, &format!("curls: growing along the ringlets ({c:?})"));
-                let axes = ringlet_axes(&directed, raw.mesh(), &c, &opts.curl_options).ok_or(ReconError::CurlGrid)?;
+                let mut axes =
+                    ringlet_axes(&directed, raw.mesh(), &c, &opts.curl_options).ok_or(ReconError::CurlGrid)?;
+                if opts.curl_options.hang {
+                    hang(&mut axes);
+                }
                 axes.save_ply(&out_dir.join("points_axes.ply"))?;
                 if let Some(g) = &gt {
                     let gt_ax = gt_axes(&g.strands, c.period / c.pitch_angle().cos(), 0.001);
@@ -705,6 +709,10 @@ fn choose_curl(
         return Ok(None);
     }
     progress.update("init", 0.6, "curls: growing along the ringlets");
+    let mut axes = axes;
+    if co.hang {
+        hang(&mut axes);
+    }
     let (_, _, centre) = grow_from(&axes, &mut serde_json::Map::new())?;
     let nv = targets.views.len();
     let k = co.score_views.clamp(1, nv.max(1));
