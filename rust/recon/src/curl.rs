@@ -19,7 +19,8 @@
 //! pitch (62°) the axes of [`ringlet_axes`] lie within 20° of the ground truth's for 74% of the points
 //! (their tangents: 1%; `examples/curl_stage`); `hairrecon reconstruct … --stop-after init` with
 //! `--curl auto` (the default) picks right-handed curls of 9 mm and 22 mm and scores 66.3 undirected /
-//! 63.9 directed F1 at 2 mm/20°, against 51.6 / 46.7 for strands grown from the tangents (`--curl off`).
+//! 63.9 directed F1 at 2 mm/20°, against 51.6 / 46.7 for strands grown from the tangents (`--curl off`);
+//! with the axes hung (session 23) 67.3 / 65.2.
 
 use glam::Vec3;
 use hairrecon_core::mesh::TriMesh;
