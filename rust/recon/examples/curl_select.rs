@@ -37,7 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = PathBuf::from(&args[1]);
     let (mut every, mut nviews) = (5usize, 12usize);
     let (mut radii, mut periods) = (vec![4.0f32, 6.5, 9.0], vec![15.0f32, 22.0, 30.0]);
-    let mut out: Option<(PathBuf, Curl)> = None;
+    let mut out: Option<PathBuf> = None;
     let mut plain: Option<PathBuf> = None;
     let mut one = Curl { radius: 0.0065, period: 0.022, hand: 1.0 };
     let mut fit = false;
@@ -50,7 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "radii" => radii = list(v)?,
             "periods" => periods = list(v)?,
             "plain" => plain = Some(PathBuf::from(v)),
-            "out" => out = Some((PathBuf::from(v), one)),
+            "out" => out = Some(PathBuf::from(v)),
             "radius" => one.radius = v.parse::<f32>()? / 1000.0,
             "period" => one.period = v.parse::<f32>()? / 1000.0,
             "hand" => one.hand = v.parse()?,
@@ -62,7 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let all = read_strands(&args[2])?;
-    if let Some((path, _)) = out {
+    if let Some(path) = out {
         one.validate()?;
         let t = Instant::now();
         let phases = if fit {
