@@ -12,15 +12,18 @@
 //!   gives a smooth axis field, from which the Laplace flow grows centrelines.
 //!
 //! The axes' signs come from the directed points, a seventh of which are wrong on curls; ringlets
-//! hang, so [`hang`] points every axis down before the growth. [`sweep_helices`] then replaces each
-//! grown strand by a helix about its own centreline.
+//! hang, so [`hang`] points every axis down before the growth. The points lie on the ringlets'
+//! outer side, a radius from their axes: [`onto_axes`] moves them there, so that the centrelines
+//! grown through them run along the axes. [`sweep_helices`] then replaces each grown strand by a
+//! helix about its own centreline.
 //!
 //! Measured on the paper curly preset (README, Reconstruction, session 22): at the preset's own
 //! pitch (62°) the axes of [`ringlet_axes`] lie within 20° of the ground truth's for 74% of the points
 //! (their tangents: 1%; `examples/curl_stage`); `hairrecon reconstruct … --stop-after init` with
 //! `--curl auto` (the default) picks right-handed curls of 9 mm and 22 mm and scores 66.3 undirected /
 //! 63.9 directed F1 at 2 mm/20°, against 51.6 / 46.7 for strands grown from the tangents (`--curl off`);
-//! with the axes hung (session 23) 67.3 / 65.2.
+//! with the axes hung (session 23) 67.3 / 65.2; with the points moved onto the axes (session 24)
+//! 68.8 / 66.6, and 17.8 against 16.4 at 1 mm/10°.
 
 use glam::Vec3;
 use hairrecon_core::mesh::TriMesh;
@@ -126,6 +129,9 @@ pub struct CurlOptions {
     pub score_views: usize,
     /// Whether the growth's axes are made to point down ([`hang`]).
     pub hang: bool,
+    /// Whether the growth's points are moved from the ringlets' visible side onto their axes
+    /// ([`onto_axes`]).
+    pub onto_axes: bool,
     /// [`fit_phases`] (a study, not in the pipeline: README, Reconstruction, session 23): how many
     /// phases are tried, and the radius (metres) and angle (degrees) of a point's support.
     pub fit_phases: usize,
@@ -151,6 +157,7 @@ impl Default for CurlOptions {
             score_every: 10,
             score_views: 8,
             hang: true,
+            onto_axes: true,
             fit_phases: 16,
             fit_radius: 0.0015,
             fit_angle_deg: 20.0,
@@ -284,6 +291,33 @@ pub fn mean_down(points: &OrientedPoints) -> f32 {
 /// within 20° either way; `examples/curl_stage`). Not for deciding the handedness by [`mean_down`].
 pub fn hang(axes: &mut OrientedPoints) {
     axes.directions.iter_mut().filter(|d| d.z > 0.0).for_each(|d| *d = -*d);
+}
+
+/// Moves every point from the side of its ringlet onto the ringlet's axis. A helix of handedness `h`
+/// about the unit axis `a` has at each point the tangent `t = cos θ a + h sin θ e_φ`, `e_φ = a × e_r`
+/// with `e_r` the unit direction from the axis out to the point; so `e_r = h (t⊥ × a)` with `t⊥` the
+/// unit part of `t` across `a` once `t` is turned to run along `a` (then `e_r` is the same whichever
+/// way `t` and `a` point), and the axis lies at
+/// `p - r e_r`. `tangents` are the points' own directions (as the line MVS gives them), `axes` the
+/// same points with the axes' directions ([`ringlet_axes`]), moved in place. A point whose tangent
+/// lies within a degree of its axis (no `e_r`) stays.
+///
+/// The cameras see the ringlets' outer side, so the points lie one radius outside the axes, and the
+/// centrelines grown through them ran there; the helices swept about those centrelines then stood a
+/// radius off the ground truth's. Measured on the paper curly preset (README, Reconstruction,
+/// session 24): the median distance of the points to the ground truth's centrelines 0.97 → 0.45 mm,
+/// within 1 mm 50.9% → 84.3% (moved the other way: 19.1%).
+pub fn onto_axes(tangents: &OrientedPoints, axes: &mut OrientedPoints, curl: &Curl) {
+    let min_across = 1f32.to_radians().sin();
+    axes.positions.par_iter_mut().zip(&axes.directions).zip(&tangents.directions).for_each(|((p, a), t)| {
+        // The tangent turned to run along the axis: then e_r does not depend on either's sign.
+        let t = if t.dot(*a) < 0.0 { -*t } else { *t };
+        let across = t - *a * t.dot(*a);
+        if across.length() > min_across * t.length() {
+            let e_r = curl.hand * across.normalize().cross(*a).normalize_or_zero();
+            *p -= curl.radius * e_r;
+        }
+    });
 }
 
 /// Rotation of `v` about the unit `axis` by `angle` radians (right-handed).
@@ -624,6 +658,55 @@ mod tests {
         let axes = ringlet_axes(&points, &raw, &wrong, &CurlOptions::default()).unwrap();
         let within = axes.directions.iter().filter(|d| d.dot(-Vec3::Z) > 15f32.to_radians().cos()).count();
         assert_eq!(within, 0);
+    }
+
+    #[test]
+    fn points_move_onto_their_ringlets_axis() {
+        // Two ringlets about (0, 0, z) and (0.02, 0, z), every sample (all sides), with the tangent
+        // root-to-tip or reversed (the line MVS's lines are undirected before the direction stage) and
+        // the axis pointing down or up: each point must land on its own ringlet's axis.
+        let mut positions = Vec::new();
+        let mut tangents = Vec::new();
+        let mut axes = Vec::new();
+        let mut own = Vec::new();
+        let centres = [Vec3::ZERO, Vec3::new(0.02, 0.0, 0.0)];
+        for (j, c) in centres.iter().enumerate() {
+            let h = helix(&CURL, 0.08, 0.7 * j as f32);
+            for k in 1..h.len() - 1 {
+                own.push(*c);
+                positions.push(h[k] + *c);
+                let t = (h[k + 1] - h[k - 1]).normalize();
+                tangents.push(if k % 3 == 0 { -t } else { t });
+                axes.push(if k % 2 == 0 { -Vec3::Z } else { Vec3::Z });
+            }
+        }
+        let n = positions.len();
+        let conf = vec![1.0; n];
+        let tangents = OrientedPoints { positions: positions.clone(), directions: tangents, confidence: conf.clone() };
+        // Each point's distance from its own ringlet's axis.
+        let radial = |pts: &OrientedPoints| -> Vec<f32> {
+            pts.positions.iter().zip(&own).map(|(p, c)| (*p - *c).truncate().length()).collect()
+        };
+        let off_axis = |pts: &OrientedPoints| radial(pts).into_iter().fold(0.0, f32::max);
+        let mut moved =
+            OrientedPoints { positions: positions.clone(), directions: axes.clone(), confidence: conf.clone() };
+        assert!((off_axis(&moved) - CURL.radius).abs() < 1e-4);
+        onto_axes(&tangents, &mut moved, &CURL);
+        // Central differences of 0.5 mm steps on a 6.5 mm helix: the tangent is exact in direction.
+        assert!(off_axis(&moved) < 1e-4, "farthest from its axis: {} m", off_axis(&moved));
+        for (a, b) in moved.positions.iter().zip(&positions) {
+            assert!((a.z - b.z).abs() < 1e-6, "moved along the axis");
+        }
+        // The wrong handedness sends them out to twice the radius.
+        let mut wrong = OrientedPoints { positions, directions: axes, confidence: conf };
+        onto_axes(&tangents, &mut wrong, &Curl { hand: -1.0, ..CURL });
+        let nearest = radial(&wrong).into_iter().fold(f32::INFINITY, f32::min);
+        assert!((nearest - 2.0 * CURL.radius).abs() < 1e-4, "wrong handedness: nearest {nearest} m");
+        // A point whose tangent runs along its axis has no side to move from.
+        let along = OrientedPoints { positions: vec![Vec3::X], directions: vec![Vec3::Z], confidence: vec![1.0] };
+        let mut same = along.clone();
+        onto_axes(&along, &mut same, &CURL);
+        assert_eq!(same.positions[0], Vec3::X);
     }
 
     #[test]
