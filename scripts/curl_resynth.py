@@ -1,13 +1,14 @@
 """Replaces each strand by a helix about its own centreline, for the curly study (README, session 21).
 
     .venv/bin/python scripts/curl_resynth.py IN.hair OUT.hair WINDOW_MM RADIUS_MM PERIOD_MM
-        [hand=1] [ramp_mm=15] [seed=0]
+        [hand=1] [ramp_mm=15] [seed=0] [phase=random|own]
 
 Each strand is resampled every 1 mm of arc; its centreline is the mean of its points over WINDOW_MM of arc
 (a window of one turn cancels a round helix exactly; the window shrinks at the ends, the root is kept). The
 centreline is resampled every 1 mm of its own arc and a helix of RADIUS_MM and PERIOD_MM of centreline per
 turn is swept about it in a frame carried along it (as `hairrecon synth-hair` makes curls), growing to full
-radius over `ramp_mm` from the root, at a random phase per strand (seeded). hand=1 turns right-handed about
+radius over `ramp_mm` from the root, at a random phase per strand (seeded), or with phase=own at the phase that
+follows the strand itself best (the phase ceiling of session 24's study). hand=1 turns right-handed about
 the root-to-tip tangent (the curly preset's curls), -1 left-handed, 0 writes the centrelines alone.
 The output has about 100 points per strand. Score it with `hairrecon eval`. Needs only numpy.
 
@@ -37,25 +38,46 @@ def box_mean(pts: np.ndarray, window: int) -> np.ndarray:
     return (cs[hi] - cs[lo]) / (hi - lo)[:, None]
 
 
-def helix_about(c: np.ndarray, radius: float, period: float, hand: float, ramp: float, phi0: float) -> np.ndarray:
-    """A helix about the centreline `c` (points every STEP of arc)."""
+def frames(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The frame (e1, e2) carried along the centreline `c` (e1 kept across the tangent, e2 = t x e1)."""
     t = np.gradient(c, axis=0)
     t /= np.linalg.norm(t, axis=1, keepdims=True) + 1e-12
     e1 = np.cross(t[0], [0.0, 0.0, 1.0])
     if np.linalg.norm(e1) < 1e-6:
         e1 = np.cross(t[0], [1.0, 0.0, 0.0])
     e1 /= np.linalg.norm(e1)
-    out = np.empty_like(c)
+    E1, E2 = np.empty_like(c), np.empty_like(c)
     for k in range(len(c)):
         e1 = e1 - t[k] * (t[k] @ e1)
         e1 /= np.linalg.norm(e1) + 1e-12
-        e2 = np.cross(t[k], e1)
-        s = k * STEP
-        x = min(s / ramp, 1.0) if ramp > 0 else 1.0
-        r = radius * x * x * (3.0 - 2.0 * x)
-        phi = phi0 + hand * 2.0 * np.pi * s / period
-        out[k] = c[k] + r * (np.cos(phi) * e1 + np.sin(phi) * e2)
-    return out
+        E1[k], E2[k] = e1, np.cross(t[k], e1)
+    return E1, E2
+
+
+def helix_about(c: np.ndarray, radius: float, period: float, hand: float, ramp: float, phi0: float) -> np.ndarray:
+    """A helix about the centreline `c` (points every STEP of arc)."""
+    E1, E2 = frames(c)
+    s = np.arange(len(c)) * STEP
+    x = np.minimum(s / ramp, 1.0) if ramp > 0 else np.ones(len(c))
+    r = radius * x * x * (3.0 - 2.0 * x)
+    phi = phi0 + hand * 2.0 * np.pi * s / period
+    return c + r[:, None] * (np.cos(phi)[:, None] * E1 + np.sin(phi)[:, None] * E2)
+
+
+def own_phase(s: np.ndarray, c_raw: np.ndarray, c: np.ndarray, period: float, hand: float, ramp: float):
+    """The phase at which `helix_about(c, ...)` follows the strand `s` best (`c_raw`: its box mean, one
+    sample per sample of `s`; `c`: that resampled): the circular mean, past the ramp, of each sample's
+    angle about the centreline in the helix's frame less the helix's turning. None when nothing is
+    past the ramp."""
+    E1, E2 = frames(c)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c_raw, axis=0), axis=1))])
+    k = np.clip(np.round(arc / STEP).astype(int), 0, len(c) - 1)
+    off = s - c_raw
+    ang = np.arctan2(np.einsum("ij,ij->i", off, E2[k]), np.einsum("ij,ij->i", off, E1[k]))
+    keep = arc > ramp
+    if not keep.any():
+        return None
+    return float(np.angle(np.exp(1j * (ang[keep] - hand * 2.0 * np.pi * arc[keep] / period)).mean()))
 
 
 def main(argv: list[str]) -> None:
@@ -64,9 +86,14 @@ def main(argv: list[str]) -> None:
     kw = {}
     for a in argv[5:]:
         k, sep, v = a.partition("=")
-        if not sep or k not in ("hand", "ramp_mm", "seed"):
-            raise SystemExit(f"unknown option {a!r}; use hand=, ramp_mm=, seed=")
-        kw[k] = float(v)
+        if not sep or k not in ("hand", "ramp_mm", "seed", "phase"):
+            raise SystemExit(f"unknown option {a!r}; use hand=, ramp_mm=, seed=, phase=")
+        if k == "phase":
+            if v not in ("random", "own"):
+                raise SystemExit(f"phase={v!r}: give phase=random or phase=own")
+            kw[k] = v
+        else:
+            kw[k] = float(v)
     window = int(round(float(argv[2])))
     radius, period = float(argv[3]) / 1000, float(argv[4]) / 1000
     if window < 1 or radius < 0 or period <= 0:
@@ -84,11 +111,14 @@ def main(argv: list[str]) -> None:
         s, _ = _hairio.resample_by_arc(pts[offsets[i] : offsets[i + 1]].astype(np.float64), STEP)
         if len(s) < 3:
             continue
-        c = box_mean(s, window)
-        c[0] = s[0]
-        c, _ = _hairio.resample_by_arc(c, STEP)
+        c_raw = box_mean(s, window)
+        c_raw[0] = s[0]
+        c, _ = _hairio.resample_by_arc(c_raw, STEP)
         if len(c) < 3:
             continue
+        if kw.get("phase") == "own" and hand != 0:
+            fitted = own_phase(s, c_raw, c, period, hand, ramp)
+            phi0 = phi0 if fitted is None else fitted
         res = c if hand == 0 else helix_about(c, radius, period, hand, ramp, phi0)
         every = max(1, len(res) // 99)
         keep = res[::every]

@@ -1,5 +1,6 @@
 """scripts/curl_resynth.py: a window of one turn recovers a helix's axis, the helix it sweeps has the
-asked radius and handedness; bad input gets an error and no output file."""
+asked radius and handedness, at the strand's own phase with phase=own; bad input gets an error and no
+output file."""
 
 from __future__ import annotations
 
@@ -15,13 +16,13 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "curl_resynth.py"
 R, PERIOD = 0.0065, 0.022
 
 
-def _helix(tmp_path: Path, hand: float) -> Path:
+def _helix(tmp_path: Path, hand: float, phase: float = 0.0) -> Path:
     # One strand: a helix of the curly preset's radius and period about the -z axis, 200 mm of axis,
     # 2,000 points (finer than the script's 1 mm resampling).
     z = np.linspace(0.0, 0.2, 2000)
-    phi = hand * 2 * np.pi * z / PERIOD
+    phi = phase + hand * 2 * np.pi * z / PERIOD
     pts = np.stack([R * np.cos(phi), R * np.sin(phi), -z], 1)
-    path = tmp_path / "in.hair"
+    path = tmp_path / f"in_{phase}.hair"
     hio.write_hair(path, pts.astype(np.float32), np.array([len(pts)]))
     return path
 
@@ -67,6 +68,29 @@ def test_helix_has_the_radius_and_the_handedness(tmp_path):
         assert abs(per_m - 2 * np.pi / PERIOD) < 0.05 * 2 * np.pi / PERIOD
 
 
+def test_own_phase_follows_the_strand(tmp_path):
+    # phase=own puts the swept helix on the strand it replaces, whatever the strand's phase; a random
+    # phase (seeds 0-3) leaves it millimetres off. (`_helix(..., -1.0)` turns right-handed about the
+    # root-to-tip direction -z in the script's sense: clockwise seen from +z.)
+    def farthest(src: Path, out: Path) -> float:
+        a = _middle(out)
+        b, _ = hio.read_hair(src)
+        return max(np.linalg.norm(b - p, axis=1).min() for p in a)
+
+    for phase in (0.0, 2.0, -2.5):
+        src = _helix(tmp_path, -1.0, phase)
+        out = tmp_path / "own.hair"
+        r = _run(src, out, 46, 6.5, 22, "phase=own")
+        assert r.returncode == 0, r.stderr
+        assert farthest(src, out) < 0.0005, phase
+    src = _helix(tmp_path, -1.0, 2.0)
+    for seed in range(4):
+        out = tmp_path / f"random{seed}.hair"
+        r = _run(src, out, 46, 6.5, 22, f"seed={seed}")
+        assert r.returncode == 0, r.stderr
+        assert farthest(src, out) > 0.002, seed
+
+
 def test_bad_input_gets_an_error_and_no_file(tmp_path):
     out = tmp_path / "out.hair"
     (tmp_path / "bad.hair").write_bytes(b"not hair")
@@ -74,5 +98,7 @@ def test_bad_input_gets_an_error_and_no_file(tmp_path):
     assert r.returncode == 1 and "not a .hair file" in r.stderr and not out.exists()
     r = _run(_helix(tmp_path, 1.0), out, 46, 6.5, 22, "turns=3")
     assert r.returncode == 1 and "unknown option" in r.stderr and not out.exists()
+    r = _run(_helix(tmp_path, 1.0), out, 46, 6.5, 22, "phase=best")
+    assert r.returncode == 1 and "phase=random or phase=own" in r.stderr and not out.exists()
     r = _run(_helix(tmp_path, 1.0), out, 46, 6.5, 0)
     assert r.returncode == 1 and "PERIOD_MM" in r.stderr and not out.exists()
