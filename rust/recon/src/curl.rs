@@ -297,16 +297,17 @@ pub fn hang(axes: &mut OrientedPoints) {
 /// about the unit axis `a` has at each point the tangent `t = cos θ a + h sin θ e_φ`, `e_φ = a × e_r`
 /// with `e_r` the unit direction from the axis out to the point; so `e_r = h (t⊥ × a)` with `t⊥` the
 /// unit part of `t` across `a` once `t` is turned to run along `a` (then `e_r` is the same whichever
-/// way `t` and `a` point), and the axis lies at
-/// `p - r e_r`. `tangents` are the points' own directions (as the line MVS gives them), `axes` the
-/// same points with the axes' directions ([`ringlet_axes`]), moved in place. A point whose tangent
-/// lies within a degree of its axis (no `e_r`) stays.
+/// way `t` and `a` point), and the axis lies at `p - r e_r`. `tangents` are the points' own
+/// directions (as the line MVS gives them), `axes` the same points with the axes' directions
+/// ([`ringlet_axes`]), moved in place. A point whose tangent lies within a degree of its axis (no
+/// `e_r`) stays.
 ///
 /// The cameras see the ringlets' outer side, so the points lie one radius outside the axes, and the
 /// centrelines grown through them ran there; the helices swept about those centrelines then stood a
 /// radius off the ground truth's. Measured on the paper curly preset (README, Reconstruction,
-/// session 24): the median distance of the points to the ground truth's centrelines 0.97 → 0.45 mm,
-/// within 1 mm 50.9% → 84.3% (moved the other way: 19.1%).
+/// session 24; `examples/curl_stage … onto=0,6.5,-6.5`): of the points seen on a ground-truth strand,
+/// the median distance to that strand's centreline 6.58 → 1.45 mm at the preset's radius, within
+/// 2 mm 3.5% → 68.1% (moved the wrong way: 12.87 mm).
 pub fn onto_axes(tangents: &OrientedPoints, axes: &mut OrientedPoints, curl: &Curl) {
     let min_across = 1f32.to_radians().sin();
     axes.positions.par_iter_mut().zip(&axes.directions).zip(&tangents.directions).for_each(|((p, a), t)| {
