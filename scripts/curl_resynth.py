@@ -54,9 +54,11 @@ def frames(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return E1, E2
 
 
-def helix_about(c: np.ndarray, radius: float, period: float, hand: float, ramp: float, phi0: float) -> np.ndarray:
-    """A helix about the centreline `c` (points every STEP of arc)."""
-    E1, E2 = frames(c)
+def helix_about(
+    c: np.ndarray, radius: float, period: float, hand: float, ramp: float, phi0: float, frame=None
+) -> np.ndarray:
+    """A helix about the centreline `c` (points every STEP of arc); `frame`: `frames(c)` if known."""
+    E1, E2 = frames(c) if frame is None else frame
     s = np.arange(len(c)) * STEP
     x = np.minimum(s / ramp, 1.0) if ramp > 0 else np.ones(len(c))
     r = radius * x * x * (3.0 - 2.0 * x)
@@ -64,12 +66,12 @@ def helix_about(c: np.ndarray, radius: float, period: float, hand: float, ramp: 
     return c + r[:, None] * (np.cos(phi)[:, None] * E1 + np.sin(phi)[:, None] * E2)
 
 
-def own_phase(s: np.ndarray, c_raw: np.ndarray, c: np.ndarray, period: float, hand: float, ramp: float):
+def own_phase(s: np.ndarray, c_raw: np.ndarray, c: np.ndarray, frame, period: float, hand: float, ramp: float):
     """The phase at which `helix_about(c, ...)` follows the strand `s` best (`c_raw`: its box mean, one
-    sample per sample of `s`; `c`: that resampled): the circular mean, past the ramp, of each sample's
-    angle about the centreline in the helix's frame less the helix's turning. None when nothing is
-    past the ramp."""
-    E1, E2 = frames(c)
+    sample per sample of `s`; `c`: that resampled; `frame`: `frames(c)`): the circular mean, past the
+    ramp, of each sample's angle about the centreline in the helix's frame less the helix's turning.
+    None when nothing is past the ramp."""
+    E1, E2 = frame
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c_raw, axis=0), axis=1))])
     k = np.clip(np.round(arc / STEP).astype(int), 0, len(c) - 1)
     off = s - c_raw
@@ -116,10 +118,11 @@ def main(argv: list[str]) -> None:
         c, _ = _hairio.resample_by_arc(c_raw, STEP)
         if len(c) < 3:
             continue
+        frame = frames(c) if hand != 0 else None
         if kw.get("phase") == "own" and hand != 0:
-            fitted = own_phase(s, c_raw, c, period, hand, ramp)
+            fitted = own_phase(s, c_raw, c, frame, period, hand, ramp)
             phi0 = phi0 if fitted is None else fitted
-        res = c if hand == 0 else helix_about(c, radius, period, hand, ramp, phi0)
+        res = c if hand == 0 else helix_about(c, radius, period, hand, ramp, phi0, frame)
         every = max(1, len(res) // 99)
         keep = res[::every]
         if (len(res) - 1) % every:
