@@ -6,6 +6,7 @@
 //! `cargo run --release -p hairrecon-recon --example curl_select -- CAPTURE DIR STRANDS [key=value ...]`
 //! (`DIR`: a `hairrecon reconstruct` output with `orient2d/`) keys: `every` (strand subset, 5),
 //! `views` (number of views, evenly spread, 12), `radii` and `periods` (mm, comma-separated);
+//! `gt_orient=1` scores against the capture's `gt/orientation` maps instead of DIR's Gabor maps;
 //! `plain=PATH` also scores those strands (e.g. the init grown from the points' own directions);
 //! `out=PATH radius=R period=P hand=H` writes all the strands swept with that curl instead, at
 //! phases fitted to `DIR/points_directed.ply` with `fit=1` (`fit_radius` mm, `fit_angle` degrees,
@@ -20,7 +21,7 @@ use hairrecon_core::{Bvh, StrandSet};
 use hairrecon_recon::curl::{fit_phases, sweep_helices, sweep_helices_at, Curl, CurlOptions, PointSupport};
 use hairrecon_recon::dr::optimize::{image_terms, orientation_misfit};
 use hairrecon_recon::dr::{DrOptions, DrTargets};
-use hairrecon_recon::pipeline::load_orient2d;
+use hairrecon_recon::pipeline::{load_gt_orient2d, load_orient2d};
 use hairrecon_recon::progress::NoProgress;
 
 fn list(v: &str) -> Result<Vec<f32>, std::num::ParseFloatError> {
@@ -41,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut plain: Option<PathBuf> = None;
     let mut one = Curl { radius: 0.0065, period: 0.022, hand: 1.0 };
     let mut fit = false;
+    let mut gt_orient = false;
     let mut co = CurlOptions::default();
     for kv in &args[3..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
@@ -55,6 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "period" => one.period = v.parse::<f32>()? / 1000.0,
             "hand" => one.hand = v.parse()?,
             "fit" => fit = v == "1",
+            "gt_orient" => gt_orient = v == "1",
             "fit_radius" => co.fit_radius = v.parse::<f32>()? / 1000.0,
             "fit_angle" => co.fit_angle_deg = v.parse()?,
             "fit_phases" => co.fit_phases = v.parse()?,
@@ -82,7 +85,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let pick: Vec<usize> = (0..all.num_strands()).step_by(every.max(1)).collect();
     let strands = all.select(&pick);
-    let maps = load_orient2d(&capture, &dir)?;
+    let maps = if gt_orient { load_gt_orient2d(&capture)? } else { load_orient2d(&capture, &dir)? };
     let head = match &capture.head_mesh {
         Some(h) => Some(Bvh::new(read_mesh(h)?)),
         None => None,
