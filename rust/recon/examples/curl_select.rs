@@ -10,7 +10,9 @@
 //! `plain=PATH` also scores those strands (e.g. the init grown from the points' own directions);
 //! `out=PATH radius=R period=P hand=H` writes all the strands swept with that curl instead, at
 //! phases fitted to `DIR/points_directed.ply` with `fit=1` (`fit_radius` mm, `fit_angle` degrees,
-//! `fit_phases`), else at random phases.
+//! `fit_phases`), else at random phases. `window` (mm) is the arc over which a strand's centreline is
+//! averaged (`CurlOptions::centre_window`; to sweep strands that are helices already, give one turn
+//! of theirs, e.g. 46.4 for 6.5 mm / 22 mm).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -61,6 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "fit_radius" => co.fit_radius = v.parse::<f32>()? / 1000.0,
             "fit_angle" => co.fit_angle_deg = v.parse()?,
             "fit_phases" => co.fit_phases = v.parse()?,
+            "window" => co.centre_window = v.parse::<f32>()? / 1000.0,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }
