@@ -1,4 +1,4 @@
-"""Replaces each strand by a helix about its own centreline, for the curly study (README, session 21).
+"""Replaces each strand by a helix about its own centreline, for the curly study (docs/curly-study.md, session 21).
 
     .venv/bin/python scripts/curl_resynth.py IN.hair OUT.hair WINDOW_MM RADIUS_MM PERIOD_MM
         [hand=1] [ramp_mm=15] [seed=0] [phase=random|own]

@@ -1,4 +1,4 @@
-"""Two child populations in one strand set, for the curly study (README, session 18).
+"""Two child populations in one strand set, for the curly study (docs/curly-study.md, session 18).
 
 Strand i of OUT is strand i of B with probability SHARE and strand i of A otherwise (a seeded draw,
 so the same inputs give the same bytes); A and B are two `init_stage` outputs made from the same

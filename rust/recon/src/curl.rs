@@ -17,7 +17,7 @@
 //! grown through them run along the axes. [`sweep_helices`] then replaces each grown strand by a
 //! helix about its own centreline.
 //!
-//! Measured on the paper curly preset (README, Reconstruction, session 22): at the preset's own
+//! Measured on the paper curly preset (docs/curly-study.md, session 22): at the preset's own
 //! pitch (62°) the axes of [`ringlet_axes`] lie within 20° of the ground truth's for 74% of the points
 //! (their tangents: 1%; `examples/curl_stage`); `hairrecon reconstruct … --stop-after init` with
 //! `--curl auto` (the default) picks right-handed curls of 9 mm and 22 mm and scores 66.3 undirected /
@@ -132,7 +132,7 @@ pub struct CurlOptions {
     /// Whether the growth's points are moved from the ringlets' visible side onto their axes
     /// ([`onto_axes`]).
     pub onto_axes: bool,
-    /// [`fit_phases`] (a study, not in the pipeline: README, Reconstruction, session 23): how many
+    /// [`fit_phases`] (a study, not in the pipeline: docs/curly-study.md, sessions 23 and 25): how many
     /// phases are tried, and the radius (metres) and angle (degrees) of a point's support.
     pub fit_phases: usize,
     pub fit_radius: f32,
@@ -141,7 +141,7 @@ pub struct CurlOptions {
 
 impl Default for CurlOptions {
     fn default() -> Self {
-        // The settings of the session-22 study (README): sigma 25 mm for the normals, 5 mm for the
+        // The settings of the session-22 study (docs/curly-study.md): sigma 25 mm for the normals, 5 mm for the
         // axes, a 20 mm window; sigma 10 mm for the normals gave 43% of the axes within 20°, 25 mm 47%
         // (before the average, which raises it to 65%).
         Self {
@@ -304,7 +304,7 @@ pub fn hang(axes: &mut OrientedPoints) {
 ///
 /// The cameras see the ringlets' outer side, so the points lie one radius outside the axes, and the
 /// centrelines grown through them ran there; the helices swept about those centrelines then stood a
-/// radius off the ground truth's. Measured on the paper curly preset (README, Reconstruction,
+/// radius off the ground truth's. Measured on the paper curly preset (docs/curly-study.md,
 /// session 24; `examples/curl_stage … onto=0,6.5,-6.5`): of the points seen on a ground-truth strand,
 /// the median distance to that strand's centreline 6.58 → 1.45 mm at the preset's radius, within
 /// 2 mm 3.5% → 68.1% (moved the wrong way: 12.87 mm).

@@ -172,7 +172,7 @@ pub struct GrowParams {
     /// lose recall (`examples/init_stage … children=50000`, undirected P / R / F1 at 2 mm/20°:
     /// 43.3 / 56.6 / 49.1 → 50.7 / 42.8 / 46.4). Half the children from each set (the field's
     /// cover the volume, the traced ones the visible curls) score 51.8 with `loop_window=0`, and
-    /// wavy 55.3 → 57.0, but directed F1 falls (curly 44.5 → 43.1): the README's session-18 notes.
+    /// wavy 55.3 → 57.0, but directed F1 falls (curly 44.5 → 43.1): docs/curly-study.md, session 18.
     pub trace_trumps: f32,
 }
 

@@ -694,6 +694,12 @@ type GrowFn<'a> = dyn Fn(&OrientedPoints, &mut Metrics) -> Result<Grown, ReconEr
 /// 67.2 to 64.4 undirected F1 at 2 mm/20° (paper curly, session 24): the misfit favours flat coils
 /// and cannot tell the radius, since a helix of any radius about a centreline moved in by that
 /// radius reaches the same visible surface.
+///
+/// Nor does the misfit measure the radius where the centrelines are right: helices about the ground
+/// truth's own centrelines, scored against its own orientation maps, rank the radii by how densely
+/// they are drawn (every 25th strand: 11 mm best, 1.346 against 1.427 at the preset's 6.5 mm; all
+/// 50,000: 4 mm best, 1.084 against 1.369; docs/curly-study.md, session 25). The period it picks is
+/// the preset's; the radius is the subset's preference.
 #[allow(clippy::too_many_arguments)]
 fn choose_curl(
     directed: &OrientedPoints,

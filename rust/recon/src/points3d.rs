@@ -43,7 +43,7 @@
 //!   83.1 / 39.6%. Curly's points are near the hair (median 0.41 mm from it) but a quarter of them
 //!   are off by more than 20° in direction: the 2D orientation, not the depth, limits them, and
 //!   the sweeps cannot mend that; the strands grown from the sweeps' points score lower (curly
-//!   undirected F1 48.8 → 47.4 at 2 mm/20°, README "Session 20"), so they stay off.
+//!   undirected F1 48.8 → 47.4 at 2 mm/20°, docs/curly-study.md, session 20), so they stay off.
 //!
 //! Not built: LPMVS's final cross-view point filtering. A point-radius cross-view filter (points
 //! of ≥ 2 other views within 1 mm) was tried and dropped: at 2.3 mm per pixel, points of different
