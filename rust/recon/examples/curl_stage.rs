@@ -11,7 +11,8 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example curl_stage -- CAPTURE DIR [key=value ...]`
 //! keys: `radius` (mm, 6.5), `period` (mm, 22), `hand` (1 or -1), `normal_sigma`, `axis_sigma` (mm),
-//! `save`, `scan`, `onto`.
+//! `save`, `scan`, `onto`, `moved=1` (save the hung axes moved onto the axes at `radius`: what the
+//! pipeline grows from).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -36,11 +37,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = PathBuf::from(&args[1]);
     let mut curl = Curl { radius: 0.0065, period: 0.022, hand: 1.0 };
     let mut opts = CurlOptions::default();
-    let (mut save, mut scan, mut onto) = (None, false, Vec::new());
+    let (mut save, mut scan, mut onto, mut moved) = (None, false, Vec::new(), false);
     for kv in &args[2..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
         match k {
             "save" => save = Some(PathBuf::from(v)),
+            "moved" => moved = v == "1",
             "scan" => scan = v == "1",
             "onto" => {
                 onto = v.split(',').map(|r| r.trim().parse::<f32>().map(|r| r / 1000.0)).collect::<Result<_, _>>()?
@@ -123,6 +125,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     if let Some(path) = save {
+        // `moved=1`: what the pipeline grows from (hung, moved onto the axes at the curl's radius).
+        let axes = if moved {
+            let mut m = hung.clone();
+            onto_axes(&points, &mut m, &curl);
+            m
+        } else {
+            axes
+        };
         axes.save_ply(&path)?;
         println!("axes -> {}", path.display());
     }
