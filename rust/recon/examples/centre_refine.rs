@@ -8,8 +8,14 @@
 //! the strand's tangent count), `iters` (5), `rate` (1: the share of the mean offset taken per
 //! iteration), `smooth` (mm, 4: the offsets are averaged along the strand over a Gaussian of this
 //! σ), `min_weight` (1: less support and the sample stays), `gt=GT_CENTRES` also prints how far the
-//! axes' points lie from the ground truth's centrelines (1 mm / 10° precision and recall).
-//! Score OUT with `hairrecon eval --pred OUT --gt GT_CENTRES`.
+//! axes' points lie from the ground truth's centrelines (1 mm / 10° precision and recall); with
+//! `gt`, `split=1` prints instead how `CENTRES` match the ground truth's centrelines by distance to
+//! the axes' points (seen or hidden), and their angles to the axes and to the ground truth;
+//! `pca=R1,R2,...` (mm) how far the axes' directions and the main direction of their points within
+//! each radius lie from the ground truth's centrelines; `oracle=OUT.ply:NEAR` (mm) writes the ground
+//! truth's centreline samples (every 2nd, those within NEAR of an axes' point; 0: all) as directed
+//! points for `examples/init_stage`. Score OUT with `hairrecon eval --pred OUT --gt GT_CENTRES`.
+//! Findings: docs/curly-study.md, session 26.
 
 use std::path::PathBuf;
 use std::time::Instant;
