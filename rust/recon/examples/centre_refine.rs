@@ -107,15 +107,11 @@ fn print_pca(a: &PointIndex, g: &PointIndex, radii: &[f32]) {
     let report = |name: &str, dirs: &[Vec3]| {
         let mut ang: Vec<f32> =
             a.points.par_iter().zip(dirs).step_by(7).filter_map(|(p, t)| to_min_angle(g, *p, *t)).collect();
-        ang.sort_by(f32::total_cmp);
-        let q = |f: f32| ang[((ang.len() - 1) as f32 * f) as usize];
-        let within10 = ang.iter().filter(|&&x| x <= 10.0).count() as f32 / ang.len() as f32;
+        let within10 = ang.iter().filter(|&&x| x <= 10.0).count() as f32 / ang.len().max(1) as f32;
+        let n = ang.len();
         println!(
-            "{name}: {} points near a GT centreline; angle quartiles {:.1} / {:.1} / {:.1}°, within 10° {:.1}%",
-            ang.len(),
-            q(0.25),
-            q(0.5),
-            q(0.75),
+            "{name}: {n} points near a GT centreline; angle {}, within 10° {:.1}%",
+            quantiles(&mut ang),
             100.0 * within10
         );
     };
@@ -143,6 +139,25 @@ fn print_pca(a: &PointIndex, g: &PointIndex, radii: &[f32]) {
             .collect();
         report(&format!("main direction within {:.1} mm", 1000.0 * r), &dirs);
     }
+}
+
+/// The share of `from`'s points that one of `to` matches at 1 mm/10°, undirected.
+fn matched_share(from: &PointIndex, to: &PointIndex) -> f32 {
+    let a10 = 10f32.to_radians();
+    let n = from
+        .points
+        .par_iter()
+        .zip(&from.tangents)
+        .filter(|(q, d)| to.match_undirected(**q, **d, 0.001, a10).is_some())
+        .count();
+    n as f32 / from.len().max(1) as f32
+}
+
+/// "quartiles a / b / c°, 90% d°" of `v` (sorted in place).
+fn quantiles(v: &mut [f32]) -> String {
+    v.sort_by(f32::total_cmp);
+    let q = |f: f32| v.get(((v.len().max(1) - 1) as f32 * f) as usize).copied().unwrap_or(f32::NAN);
+    format!("quartiles {:.1} / {:.1} / {:.1}°, 90% {:.1}°", q(0.25), q(0.5), q(0.75), q(0.9))
 }
 
 /// The smallest angle (degrees, undirected) between `t` and the tangents of `g`'s samples within 1 mm of `p`.
@@ -174,24 +189,15 @@ fn print_split(a: &PointIndex, g: &PointIndex, c: &PointIndex) {
             (nb.len() >= 3).then(|| m.normalize_or(*t).dot(*t).abs().min(1.0).acos().to_degrees())
         })
         .collect();
-    to_axes.sort_by(f32::total_cmp);
-    let qa = |f: f32| to_axes[((to_axes.len() - 1) as f32 * f) as usize];
     println!(
-        "our samples with 3+ axes' points within 1.5 mm ({}): angle to their mean direction, quartiles {:.1} / {:.1} / {:.1}°",
+        "our samples with 3+ axes' points within 1.5 mm ({}): angle to their mean direction, {}",
         to_axes.len(),
-        qa(0.25),
-        qa(0.5),
-        qa(0.75)
+        quantiles(&mut to_axes)
     );
-    ang.sort_by(f32::total_cmp);
-    let q = |f: f32| ang[((ang.len() - 1) as f32 * f) as usize];
     println!(
-        "our samples with a GT sample within 1 mm ({}): smallest angle to one, quartiles {:.1} / {:.1} / {:.1}°, 90% {:.1}°",
+        "our samples with a GT sample within 1 mm ({}): smallest angle to one, {}",
         ang.len(),
-        q(0.25),
-        q(0.5),
-        q(0.75),
-        q(0.9)
+        quantiles(&mut ang)
     );
     for (name, from, to) in [("recall (GT samples)", g, c), ("precision (our samples)", c, g)] {
         let hits: Vec<(usize, bool, bool)> = from
@@ -287,21 +293,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             print_split(&index, &g, &PointIndex::from_strands(&centres, 0.001));
             return Ok(());
         }
-        let a10 = 10f32.to_radians();
-        let prec = axes
-            .positions
-            .par_iter()
-            .zip(&axes.directions)
-            .filter(|(q, d)| g.match_undirected(**q, **d, 0.001, a10).is_some())
-            .count() as f32
-            / axes.len() as f32;
-        let rec = g
-            .points
-            .par_iter()
-            .zip(&g.tangents)
-            .filter(|(q, d)| index.match_undirected(**q, **d, 0.001, a10).is_some())
-            .count() as f32
-            / g.len() as f32;
+        let (prec, rec) = (matched_share(&index, &g), matched_share(&g, &index));
         println!(
             "axes' points vs GT centrelines at 1 mm/10°: precision {:.1}%, recall {:.1}%",
             100.0 * prec,
