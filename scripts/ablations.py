@@ -217,25 +217,22 @@ def run(a) -> int:
         prev = rows.get(name, {})
         secs, peak = prev.get("seconds"), prev.get("peak_mb")
         init_scores = None
-        if name in DR_KEYS and (row_dir / "strands.hair").is_file():
-            report = evaluate(exe, row_dir / "strands.hair", gt)
-        elif name in WHOLE_FLAGS and _finished(row_dir):
-            m = json.loads((row_dir / "metrics.json").read_text())
-            report, init_scores = m["dr_strands"], scores_row(m["init_strands"])
-        elif name in DR_KEYS:
-            init = a.out / "init"
-            init.mkdir(exist_ok=True)
-            for src, dst in [("init_guides.hair", "guides.hair"), ("init_strands.hair", "strands.hair"),
-                             ("orient2d", "orient2d")]:
-                link = init / dst
-                if not link.exists():
-                    link.symlink_to((full_dir / src).resolve())
-            secs, peak = run_measured([dr_bin, a.capture, init, row_dir, "eval=0", f"{DR_KEYS[name]}=0"],
-                                      a.out / f"{name}.log")
+        if name in DR_KEYS:
+            if not (row_dir / "strands.hair").is_file():
+                init = a.out / "init"
+                init.mkdir(exist_ok=True)
+                for src, dst in [("init_guides.hair", "guides.hair"), ("init_strands.hair", "strands.hair"),
+                                 ("orient2d", "orient2d")]:
+                    link = init / dst
+                    if not link.exists():
+                        link.symlink_to((full_dir / src).resolve())
+                secs, peak = run_measured([dr_bin, a.capture, init, row_dir, "eval=0", f"{DR_KEYS[name]}=0"],
+                                          a.out / f"{name}.log")
             report = evaluate(exe, row_dir / "strands.hair", gt)
         else:
-            secs, peak = run_measured([exe, "reconstruct", a.capture, "--out", row_dir, *WHOLE_FLAGS[name]],
-                                      a.out / f"{name}.log")
+            if not _finished(row_dir):
+                secs, peak = run_measured([exe, "reconstruct", a.capture, "--out", row_dir, *WHOLE_FLAGS[name]],
+                                          a.out / f"{name}.log")
             m = json.loads((row_dir / "metrics.json").read_text())
             report, init_scores = m["dr_strands"], scores_row(m["init_strands"])
         rows[name] = {"scores": scores_row(report), "seconds": secs, "peak_mb": peak}
