@@ -34,6 +34,23 @@ pub struct SynthHairArgs {
     /// Also write a PNG with front, side and back views of the hair on the head.
     #[arg(long)]
     pub preview: Option<PathBuf>,
+    /// Curls of round helices instead of the style's own: RADIUS_MM,PERIOD_MM (e.g. 4.5,16; the
+    /// curly style's are 6.5,22). For making captures with other curls than the preset's.
+    #[arg(long, value_parser = parse_curl)]
+    pub curl: Option<(f32, f32)>,
+}
+
+/// `RADIUS_MM,PERIOD_MM` in metres.
+fn parse_curl(s: &str) -> Result<(f32, f32), String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("curl {s:?}: give RADIUS_MM,PERIOD_MM (e.g. 4.5,16)"))?;
+    match v[..] {
+        [r, p] if r > 0.0 && r < 100.0 && p > 0.0 && p < 1000.0 => Ok((r / 1000.0, p / 1000.0)),
+        _ => Err(format!("curl {s:?}: give RADIUS_MM,PERIOD_MM with a radius in (0, 100) and a period in (0, 1000)")),
+    }
 }
 
 /// A fixture given on the command line, else `blend_fixtures/<name>` in the working directory or
@@ -63,7 +80,12 @@ pub fn run(args: SynthHairArgs) -> CmdResult {
     let style: Style = args.style.parse()?;
     let head_path = fixture(args.head, "head.ply", "head mesh")?;
     let scalp_path = fixture(args.scalp, "scalp.ply", "scalp mesh")?;
-    let opts = SynthOptions { strands: args.strands, points: args.points, seed: args.seed, ..SynthOptions::new(style) };
+    let mut opts =
+        SynthOptions { strands: args.strands, points: args.points, seed: args.seed, ..SynthOptions::new(style) };
+    if let Some((radius, period)) = args.curl {
+        opts.params.curl_radius = [radius, radius];
+        opts.params.curl_period = period;
+    }
     let start = Instant::now();
     let head = read_mesh(&head_path)?;
     let scalp = read_mesh(&scalp_path)?;

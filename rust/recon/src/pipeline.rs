@@ -36,7 +36,7 @@ use hairrecon_core::{Bvh, StrandSet};
 use serde_json::json;
 use thiserror::Error;
 
-use crate::curl::{hang, mean_down, onto_axes, ringlet_axes, sweep_helices, Curl, CurlMode, CurlOptions};
+use crate::curl::{bump_period, hang, mean_down, onto_axes, ringlet_axes, sweep_helices, Curl, CurlMode, CurlOptions};
 use crate::direction::{global_directions, gravity_directions, DirectionParams};
 use crate::dr::optimize::orientation_misfit;
 use crate::dr::{optimize as dr_optimize, DrError, DrOptions, DrTargets};
@@ -489,11 +489,13 @@ pub fn reconstruct(
             CurlMode::Off => None,
             CurlMode::Fixed(c) => Some(c),
             CurlMode::Auto => {
-                progress.update("init", 0.5, "curls: targets");
-                let targets = DrTargets::from_capture(capture, &maps, Some(&inner), progress)?;
-                let c = choose_curl(&directed, raw.mesh(), &targets, opts, &grow_from, &mut metrics, progress)?;
-                dr_targets = Some(targets);
-                c
+                // The misfit's targets, when it is needed, are the DR's too.
+                let make_targets = || {
+                    progress.update("init", 0.5, "curls: targets");
+                    DrTargets::from_capture(capture, &maps, Some(&inner), progress).map_err(ReconError::from)
+                };
+                let targets = (&make_targets as &dyn Fn() -> Result<DrTargets, ReconError>, &mut dr_targets);
+                choose_curl(&directed, raw.mesh(), targets, opts, &grow_from, &mut metrics, progress)?
             }
         };
         // One growth: from the points' own directions, or with curls along the ringlet axes.
@@ -677,45 +679,46 @@ type GrowFn<'a> = dyn Fn(&OrientedPoints, &mut Metrics) -> Result<Grown, ReconEr
 /// `--curl auto` ([`crate::curl`]). Ringlets hang: the handedness whose ringlet axes (at the nominal
 /// pitch) point down more is the hair's, and the hair is curly only when those axes point down
 /// clearly more (by `CurlOptions::min_down_gain`) than the points' own directions, which on straight
-/// hair are the strands' and hang the most (paper curly preset: axes 0.59, tangents 0.42). Then
-/// strands are grown along those axes and the curl (of the radii and periods of `opts.curl_options`)
-/// whose helices about them fit the Gabor orientation maps best
-/// ([`crate::dr::optimize::orientation_misfit`], on a subset of children and views) is chosen.
-/// Everything measured goes to `metrics` as `curl_auto`.
+/// hair are the strands' and hang the most (paper curly preset: axes 0.59, tangents 0.42).
+///
+/// Then the period is read off the hair surface's bumps along those axes
+/// ([`crate::curl::bump_period`]: paper curly 22.1 mm, the preset's 22), and the radius is the one
+/// that gives the nominal pitch at that period (`CurlOptions::nominal_pitch_deg`, 60°: 6.1 mm at 22 mm;
+/// the preset's curls have 61.7°). The pitch is assumed, not measured: the points see the ringlets'
+/// visible side only, where the tangents are the same at every turn and lie at the pitch from an axis
+/// that nothing else gives (docs/curly-study.md, session 29).
+///
+/// When the surface shows no period (or `CurlOptions::bump_period` is off), strands are grown along
+/// the axes and the curl (of the radii and periods of `opts.curl_options`) whose helices about them
+/// fit the Gabor orientation maps best ([`crate::dr::optimize::orientation_misfit`], on a subset of
+/// children and views) is chosen. That misfit does not measure the radius: helices about the ground
+/// truth's own centrelines, scored against its own orientation maps, rank the radii by how densely
+/// they are drawn (every 25th strand: 11 mm best, 1.346 against 1.427 at the preset's 6.5 mm; all
+/// 50,000: 4 mm best, 1.084 against 1.369; docs/curly-study.md, session 25): on paper curly it chose
+/// 9 mm / 22 mm, the widest radius it tries. The candidates are scored on strands grown through the
+/// points where the cameras saw them; scored through points moved onto the axes it chose 9 mm /
+/// 15 mm (session 24).
 ///
 /// The images cannot decide between curls and no curls: strands that follow the visible tangents
 /// fit the orientation maps better than any helix at a random phase (paper curly: misfit 1.08
 /// against 1.36-1.56), although the helices score far higher against the ground truth.
 ///
-/// The candidates are scored on strands grown through the points where the cameras saw them, on the
-/// ringlets' outer side; only the final growth moves the points onto the axes
-/// ([`crate::curl::onto_axes`]). Scored on strands grown through moved points (each candidate at the
-/// nominal radius), the misfit chose 9 mm / 15 mm instead of 9 mm / 22 mm and the init fell from
-/// 67.2 to 64.4 undirected F1 at 2 mm/20° (paper curly, session 24): the misfit favours flat coils
-/// and cannot tell the radius, since a helix of any radius about a centreline moved in by that
-/// radius reaches the same visible surface.
-///
-/// Nor does the misfit measure the radius where the centrelines are right: helices about the ground
-/// truth's own centrelines, scored against its own orientation maps, rank the radii by how densely
-/// they are drawn (every 25th strand: 11 mm best, 1.346 against 1.427 at the preset's 6.5 mm; all
-/// 50,000: 4 mm best, 1.084 against 1.369; docs/curly-study.md, session 25). The period it picks is
-/// the preset's; the radius is the subset's preference.
+/// Everything measured goes to `metrics` as `curl_auto`. `targets`: how to make the DR's targets,
+/// which the misfit needs, and where to keep them for the DR.
 #[allow(clippy::too_many_arguments)]
 fn choose_curl(
     directed: &OrientedPoints,
     raw: &hairrecon_core::mesh::TriMesh,
-    targets: &DrTargets,
+    targets: (&dyn Fn() -> Result<DrTargets, ReconError>, &mut Option<DrTargets>),
     opts: &ReconstructOptions,
     grow_from: &GrowFn<'_>,
     metrics: &mut Metrics,
     progress: &dyn Progress,
 ) -> Result<Option<Curl>, ReconError> {
     let co = &opts.curl_options;
-    let nominal = |hand: f32| Curl {
-        radius: co.periods[1] * co.nominal_pitch_deg.to_radians().tan() / std::f32::consts::TAU,
-        period: co.periods[1],
-        hand,
-    };
+    let tan_nominal = co.nominal_pitch_deg.to_radians().tan();
+    let nominal =
+        |hand: f32| Curl { radius: co.periods[1] * tan_nominal / std::f32::consts::TAU, period: co.periods[1], hand };
     progress.update("init", 0.55, "curls: handedness");
     let right = ringlet_axes(directed, raw, &nominal(1.0), co).ok_or(ReconError::CurlGrid)?;
     let left = ringlet_axes(directed, raw, &nominal(-1.0), co).ok_or(ReconError::CurlGrid)?;
@@ -728,11 +731,30 @@ fn choose_curl(
         metrics.insert("curl_auto".into(), report);
         return Ok(None);
     }
-    progress.update("init", 0.6, "curls: growing along the ringlets");
     let mut axes = axes;
     if co.hang {
         hang(&mut axes);
     }
+    if co.bump_period {
+        progress.check()?;
+        progress.update("init", 0.58, "curls: period from the surface");
+        let bumps = bump_period(&directed.positions, &axes.directions, &co.bumps);
+        report["bumps"] = serde_json::to_value(&bumps).unwrap_or_default();
+        if let Some(period) = bumps.period {
+            let c = Curl { radius: period * tan_nominal / std::f32::consts::TAU, period, hand };
+            if c.validate().is_ok() {
+                report["chosen_by"] = json!("bumps");
+                metrics.insert("curl_auto".into(), report);
+                return Ok(Some(c));
+            }
+        }
+    }
+    let (make_targets, slot) = targets;
+    let targets: &DrTargets = match slot {
+        Some(t) => t,
+        None => slot.insert(make_targets()?),
+    };
+    progress.update("init", 0.6, "curls: growing along the ringlets");
     let (_, _, centre) = grow_from(&axes, &mut serde_json::Map::new())?;
     let nv = targets.views.len();
     let k = co.score_views.clamp(1, nv.max(1));
@@ -755,6 +777,7 @@ fn choose_curl(
         }
     }
     report["tried"] = json!(tried);
+    report["chosen_by"] = json!("misfit");
     metrics.insert("curl_auto".into(), report);
     Ok(best.1)
 }
