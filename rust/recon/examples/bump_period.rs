@@ -32,6 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "radius" => bo.radius = v.parse::<f32>()? / 1000.0,
             "strip" => bo.strip = v.parse::<f32>()? / 1000.0,
             "samples" => bo.samples = v.parse()?,
+            "diff" => bo.diff = v.parse()?,
             _ => return Err(format!("unknown key {k}").into()),
         }
     }

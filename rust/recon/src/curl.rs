@@ -373,11 +373,13 @@ pub struct BumpOptions {
     pub min_points: usize,
     /// How much higher the correlation's first maximum must be than its first minimum.
     pub min_contrast: f32,
+    /// 0: correlate the heights; k: correlate their differences over k bins (a high-pass).
+    pub diff: usize,
 }
 
 impl Default for BumpOptions {
     fn default() -> Self {
-        Self { radius: 0.04, strip: 0.0015, bin: 0.001, samples: 3000, min_points: 50, min_contrast: 0.1 }
+        Self { radius: 0.04, strip: 0.0015, bin: 0.001, samples: 3000, min_points: 50, min_contrast: 0.1, diff: 3 }
     }
 }
 
@@ -403,17 +405,19 @@ pub struct BumpReport {
 /// `samples` points: its neighbours within `radius`, in the frame of its axis `a`, the surface's
 /// normal `n` (the neighbourhood's least-spread direction, made normal to `a`) and `e = a × n`; their
 /// heights along `n` less a quadratic surface fitted to them all; the heights in the strip |e| <
-/// `strip` binned along `a`, and the products of bins `lag` apart summed over all samples. The period
-/// is the lag of the first maximum after the first (negative) minimum, which must be `min_contrast`
-/// lower. `None` when there is no such pair (a smooth surface: straight or wavy hair).
+/// `strip` binned along `a`, differenced over `diff` bins (a high-pass: the residuals of a fit over a
+/// finite neighbourhood correlate at lags near its radius, which gave straight and wavy hair false
+/// periods at 25 mm), and the products of bins `lag` apart summed over all samples. The period is the
+/// lag of the first maximum after the first (negative) minimum past `2 diff`, which must be
+/// `min_contrast` lower. `None` when there is no such pair (a smooth surface: straight or wavy hair).
 ///
 /// The axes' directions only need to be near the ringlets' (the axes at the nominal pitch of
 /// [`ringlet_axes`] are within 20° for three quarters of the points on the paper curly preset): the
 /// period seen along a direction δ off the axis is 1/cos δ longer (6% at 20°).
 ///
-/// Measured on the paper curly preset (period 22 mm; docs/curly-study.md, session 29): the ground
-/// truth's strand points seen by the cameras, with their own axes, 22 mm; our directed points with the
-/// axes at the nominal pitch, 22 mm as well (a scratch scipy version of this function).
+/// Measured (docs/curly-study.md, session 29; `examples/bump_period`): paper curly (period 22 mm)
+/// 22.1 mm; a curly capture made with `hairrecon synth-hair --curl 4.5,16` 15.7 mm; straight and
+/// wavy none; the same within 0.6 mm with neighbourhoods of 25 and 60 mm.
 pub fn bump_period(positions: &[Vec3], axes: &[Vec3], opts: &BumpOptions) -> BumpReport {
     let n = positions.len().min(axes.len());
     let lags = (opts.radius / opts.bin).round() as usize;
@@ -477,7 +481,22 @@ pub fn bump_period(positions: &[Vec3], axes: &[Vec3], opts: &BumpOptions) -> Bum
             if count.iter().map(|&c| c as usize).sum::<usize>() < opts.min_points {
                 return None;
             }
-            let mean_of = |b: usize| (count[b] > 0).then(|| sum[b] / count[b] as f64);
+            let height = |b: usize| (count[b] > 0).then(|| sum[b] / count[b] as f64);
+            // Differences over `diff` bins, less their mean (a high-pass), or the heights.
+            let series: Vec<Option<f64>> = if opts.diff > 0 {
+                let d: Vec<Option<f64>> = (0..nbins)
+                    .map(|b| match (height(b), (b + opts.diff < nbins).then(|| height(b + opts.diff)).flatten()) {
+                        (Some(x), Some(y)) => Some(y - x),
+                        _ => None,
+                    })
+                    .collect();
+                let (sum, n) = d.iter().flatten().fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+                let mean = if n > 0 { sum / n as f64 } else { 0.0 };
+                d.into_iter().map(|v| v.map(|v| v - mean)).collect()
+            } else {
+                (0..nbins).map(height).collect()
+            };
+            let mean_of = |b: usize| series[b];
             let mut prod = vec![0.0f64; lags + 1];
             let mut pairs = vec![0.0f64; lags + 1];
             for (lag, (pr, pa)) in prod.iter_mut().zip(pairs.iter_mut()).enumerate() {
@@ -504,7 +523,8 @@ pub fn bump_period(positions: &[Vec3], axes: &[Vec3], opts: &BumpOptions) -> Bum
         return BumpReport { samples, ..empty };
     }
     let correlation: Vec<f32> = raw.iter().map(|c| (c / raw[0]) as f32).collect();
-    let (first_min, period) = first_min_and_max(&correlation, opts.min_contrast);
+    // Differences of noise correlate negatively at a lag of `diff` bins: the search starts past it.
+    let (first_min, period) = first_min_and_max(&correlation, opts.min_contrast, (2 * opts.diff).max(2));
     BumpReport {
         samples,
         correlation,
@@ -514,14 +534,17 @@ pub fn bump_period(positions: &[Vec3], axes: &[Vec3], opts: &BumpOptions) -> Bum
 }
 
 /// The lags (in bins, refined by a parabola through three bins) of the first negative local minimum
-/// of `c` and of the first local maximum after it that stands `min_contrast` above it.
-fn first_min_and_max(c: &[f32], min_contrast: f32) -> (Option<f32>, Option<f32>) {
+/// of `c` from lag `start` on and of the first local maximum after it that stands `min_contrast`
+/// above it.
+fn first_min_and_max(c: &[f32], min_contrast: f32, start: usize) -> (Option<f32>, Option<f32>) {
     let refine = |k: usize| {
         let (y0, y1, y2) = (c[k - 1], c[k], c[k + 1]);
         let den = y0 - 2.0 * y1 + y2;
         k as f32 + if den.abs() > 1e-12 { (0.5 * (y0 - y2) / den).clamp(-0.5, 0.5) } else { 0.0 }
     };
-    let Some(m) = (2..c.len().saturating_sub(1)).find(|&k| c[k] < 0.0 && c[k] <= c[k - 1] && c[k] <= c[k + 1]) else {
+    let Some(m) =
+        (start.max(1)..c.len().saturating_sub(1)).find(|&k| c[k] < 0.0 && c[k] <= c[k - 1] && c[k] <= c[k + 1])
+    else {
         return (None, None);
     };
     let top = (m + 1..c.len().saturating_sub(1))
