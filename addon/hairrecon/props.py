@@ -99,8 +99,8 @@ class HairreconSettings(bpy.types.PropertyGroup):
     curl: EnumProperty(
         name="Curls",
         items=(
-            ("AUTO", "Auto", "The photos decide whether the hair is curly and which ringlets fit (radius, period, "
-                             "handedness)"),
+            ("AUTO", "Auto", "The photos decide whether the hair is curly, the ringlets' handedness and their "
+                             "period (the radius follows from a 60° pitch)"),
             ("OFF", "Off", "Strands follow the hair's visible direction, as for straight and wavy hair"),
             ("CUSTOM", "Custom", "Ringlets of the radius, period and handedness given below"),
         ),

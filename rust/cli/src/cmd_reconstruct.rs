@@ -45,8 +45,8 @@ pub struct ReconstructArgs {
     /// Ablation: straight strands along the scalp normal instead of the Laplace flow.
     #[arg(long)]
     no_strand_init: bool,
-    /// Curls: `auto` (the images decide whether the hair is curly and which curl fits: radius,
-    /// period, handedness), `off` (strands follow the points' directions, as for straight and wavy
+    /// Curls: `auto` (the capture decides whether the hair is curly, the handedness, and the period
+    /// from the hair surface's bumps, with the radius of a 60° pitch), `off` (strands follow the points' directions, as for straight and wavy
     /// hair), or RADIUS_MM,PERIOD_MM,HAND with HAND 1 right-handed, -1 left-handed (e.g. 6.5,22,1).
     #[arg(long, default_value = "auto")]
     curl: String,
