@@ -483,27 +483,23 @@ pub fn bump_period(positions: &[Vec3], axes: &[Vec3], opts: &BumpOptions) -> Bum
             if count.iter().map(|&c| c as usize).sum::<usize>() < opts.min_points {
                 return None;
             }
-            let height = |b: usize| (count[b] > 0).then(|| sum[b] / count[b] as f64);
+            let heights: Vec<Option<f64>> =
+                sum.iter().zip(&count).map(|(s, &c)| (c > 0).then(|| s / c as f64)).collect();
             // Differences over `diff` bins, less their mean (a high-pass), or the heights.
             let series: Vec<Option<f64>> = if opts.diff > 0 {
-                let d: Vec<Option<f64>> = (0..nbins)
-                    .map(|b| match (height(b), (b + opts.diff < nbins).then(|| height(b + opts.diff)).flatten()) {
-                        (Some(x), Some(y)) => Some(y - x),
-                        _ => None,
-                    })
-                    .collect();
+                let d: Vec<Option<f64>> =
+                    heights.iter().zip(&heights[opts.diff.min(nbins)..]).map(|(x, y)| Some((*y)? - (*x)?)).collect();
                 let (sum, n) = d.iter().flatten().fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
                 let mean = if n > 0 { sum / n as f64 } else { 0.0 };
                 d.into_iter().map(|v| v.map(|v| v - mean)).collect()
             } else {
-                (0..nbins).map(height).collect()
+                heights
             };
-            let mean_of = |b: usize| series[b];
             let mut prod = vec![0.0f64; lags + 1];
             let mut pairs = vec![0.0f64; lags + 1];
             for (lag, (pr, pa)) in prod.iter_mut().zip(pairs.iter_mut()).enumerate() {
-                for b in 0..nbins - lag {
-                    if let (Some(x), Some(y)) = (mean_of(b), mean_of(b + lag)) {
+                for (x, y) in series.iter().zip(series.iter().skip(lag)) {
+                    if let (Some(x), Some(y)) = (x, y) {
                         *pr += x * y;
                         *pa += 1.0;
                     }
