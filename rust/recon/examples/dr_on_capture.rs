@@ -7,7 +7,7 @@
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
 //! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`,
-//! `child_parting_reach`, `wo`, `wc`, `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
+//! `child_parting_reach`, `wo`, `wc`, `wc_rel` (1: R_c against the stage's starting curvature), `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
 //! Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an
 //! integer: every view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
@@ -104,6 +104,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "wo" => o.weights.orientation = f,
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,
+            "wc_rel" => o.curvature_relative = f > 0.5,
             "seed" => o.seed = f as u64,
             "project_every" => o.project_every = f as usize,
             "diag" => diag = f > 0.5,

@@ -10,8 +10,9 @@
 //!   rendered coverage, and a pixel the strands do not reach costs nothing. Where the target has a
 //!   head depth map, a pixel whose nearest strand lies behind the head renders as background and
 //!   sends no gradient (the head occludes it; ours).
-//! - [`regularizers`]: `R_c = ½ w_c Σ ‖p_{i−1} − 2p_i + p_{i+1}‖² / s²` (curvature as second
-//!   differences) and `R_len = ½ w_len Σ (l_j − l̄)² / s²` per strand (segment lengths against their
+//! - [`regularizers`]: `R_c = ½ w_c Σ ‖p_{i−1} − 2p_i + p_{i+1} − c_i‖² / s²` (curvature as second
+//!   differences, against a reference `c` that is 0, or the second differences the strands started
+//!   with: see [`second_differences`]) and `R_len = ½ w_len Σ (l_j − l̄)² / s²` per strand (segment lengths against their
 //!   strand's mean; the mean's own derivative cancels since `Σ (l_j − l̄) = 0`), with `s` a fixed
 //!   length scale (the median initial segment length), so the weights are dimensionless. R_root is
 //!   exact: roots are not optimized (see [`crate::dr::reparam`]).
@@ -115,9 +116,30 @@ pub fn image_loss(img: &Image, strand_depth: &[f32], view: &DrView, w: &LossWeig
     LossTerms { mask: lm, orientation: lo, ..Default::default() }
 }
 
+/// The second differences `p_{i−1} − 2p_i + p_{i+1}` of strands with the given offsets, one per
+/// point (0 at roots and tips): the reference of R_c that keeps the strands' own curvature (curls
+/// included) and penalizes only its change.
+pub fn second_differences(points: &[Vec3], offsets: &[usize]) -> Vec<Vec3> {
+    let mut c = vec![Vec3::ZERO; points.len()];
+    for w in offsets.windows(2) {
+        for i in w[0] + 1..w[1].saturating_sub(1) {
+            c[i] = points[i - 1] - points[i] * 2.0 + points[i + 1];
+        }
+    }
+    c
+}
+
 /// R_c + R_len over strands with the given offsets (in `curvature` and `length`; the image terms
-/// are 0); adds the gradient into `grad`.
-pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeights, grad: &mut [Vec3]) -> LossTerms {
+/// are 0); adds the gradient into `grad`. `reference`: per point, the second difference R_c pulls
+/// toward (see [`second_differences`]); None: 0, straight strands.
+pub fn regularizers(
+    points: &[Vec3],
+    offsets: &[usize],
+    scale: f32,
+    w: &LossWeights,
+    reference: Option<&[Vec3]>,
+    grad: &mut [Vec3],
+) -> LossTerms {
     let inv_s2 = 1.0 / (scale * scale).max(1e-20);
     let (wc, wl) = (w.curvature * inv_s2, w.length * inv_s2);
     let (mut lc, mut ll) = (0.0f64, 0.0f64);
@@ -140,7 +162,8 @@ pub fn regularizers(points: &[Vec3], offsets: &[usize], scale: f32, w: &LossWeig
         }
         if wc > 0.0 {
             for i in 1..n.saturating_sub(1) {
-                let c = p[i - 1] - p[i] * 2.0 + p[i + 1];
+                let c0 = reference.map_or(Vec3::ZERO, |r| r[o + i]);
+                let c = p[i - 1] - p[i] * 2.0 + p[i + 1] - c0;
                 lc += 0.5 * (wc * c.length_squared()) as f64;
                 let gc = c * wc;
                 g[i - 1] += gc;
@@ -178,21 +201,52 @@ mod tests {
         let offsets = [0usize, 3, 7];
         let w = LossWeights { mask: 0.0, orientation: 0.0, curvature: 0.7, length: 1.3 };
         let s = 0.002;
-        let mut g = vec![Vec3::ZERO; pts.len()];
-        regularizers(&pts, &offsets, s, &w, &mut g);
-        let h = 1e-6f32;
-        for i in 0..pts.len() {
-            for c in 0..3 {
-                let (mut a, mut b) = (pts.clone(), pts.clone());
-                a[i][c] += h;
-                b[i][c] -= h;
-                let mut scratch = vec![Vec3::ZERO; pts.len()];
-                let fd = (regularizers(&a, &offsets, s, &w, &mut scratch).total()
-                    - regularizers(&b, &offsets, s, &w, &mut scratch).total())
-                    / (2.0 * h as f64);
-                let err = (fd as f32 - g[i][c]).abs();
-                assert!(err <= 0.02 * fd.abs() as f32 + 0.5, "point {i} coord {c}: fd {fd} analytic {}", g[i][c]);
+        // A reference from other strands, so that the relative R_c has a gradient to check.
+        let other: Vec<Vec3> = pts.iter().map(|p| Vec3::new(p.y, -p.x, 0.5 * p.z)).collect();
+        let reference = second_differences(&other, &offsets);
+        for r in [None, Some(reference.as_slice())] {
+            let mut g = vec![Vec3::ZERO; pts.len()];
+            regularizers(&pts, &offsets, s, &w, r, &mut g);
+            let h = 1e-6f32;
+            for i in 0..pts.len() {
+                for c in 0..3 {
+                    let (mut a, mut b) = (pts.clone(), pts.clone());
+                    a[i][c] += h;
+                    b[i][c] -= h;
+                    let mut scratch = vec![Vec3::ZERO; pts.len()];
+                    let fd = (regularizers(&a, &offsets, s, &w, r, &mut scratch).total()
+                        - regularizers(&b, &offsets, s, &w, r, &mut scratch).total())
+                        / (2.0 * h as f64);
+                    let err = (fd as f32 - g[i][c]).abs();
+                    assert!(err <= 0.02 * fd.abs() as f32 + 0.5, "point {i} coord {c}: fd {fd} analytic {}", g[i][c]);
+                }
             }
         }
+    }
+
+    #[test]
+    fn relative_curvature_is_zero_at_the_reference_and_positive_off_it() {
+        // A helix (a curl of 6 mm radius) costs R_c against straightness but nothing against its own
+        // second differences; a kink of 0.5 mm at one point costs only the kink against them.
+        let helix: Vec<Vec3> = (0..40)
+            .map(|i| {
+                let t = i as f32 * 0.25;
+                Vec3::new(0.006 * t.cos(), 0.006 * t.sin(), -0.0035 * t)
+            })
+            .collect();
+        let offsets = [0usize, 40];
+        let w = LossWeights { mask: 0.0, orientation: 0.0, curvature: 1.0, length: 0.0 };
+        let reference = second_differences(&helix, &offsets);
+        let mut g = vec![Vec3::ZERO; helix.len()];
+        let absolute = regularizers(&helix, &offsets, 0.001, &w, None, &mut g).curvature;
+        let relative = regularizers(&helix, &offsets, 0.001, &w, Some(&reference), &mut g).curvature;
+        // Σ over 38 interior points of ½‖c‖²/s², ‖c‖ = 2r(1 − cos 0.25) = 3.73e-4 m: 38 · ½ · 0.139.
+        assert!((absolute - 2.64).abs() < 0.03, "absolute R_c {absolute}");
+        assert!(relative.abs() < 1e-9, "relative R_c at its reference {relative}");
+        let mut kinked = helix.clone();
+        kinked[20].x += 0.0005;
+        // The kink changes three second differences by (1, −2, 1) · 0.5 mm: ½ · (0.25 + 1 + 0.25) = 0.75.
+        let rel_kink = regularizers(&kinked, &offsets, 0.001, &w, Some(&reference), &mut g).curvature;
+        assert!((rel_kink - 0.75).abs() < 1e-3, "relative R_c of the kink {rel_kink}");
     }
 }

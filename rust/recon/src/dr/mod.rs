@@ -247,6 +247,9 @@ pub struct DrOptions {
     pub project_every: usize,
     /// Resample every strand to equal segment lengths at the end.
     pub equalize_at_end: bool,
+    /// R_c against the second differences each stage starts from (the init's curls kept, only their
+    /// change penalized) instead of against straight strands.
+    pub curvature_relative: bool,
     /// Relative residual at which the conjugate-gradient solves of the reparameterization stop.
     pub cg_tolerance: f32,
     pub weights: LossWeights,
@@ -274,6 +277,7 @@ impl Default for DrOptions {
             head_clearance: 0.001,
             project_every: 10,
             equalize_at_end: true,
+            curvature_relative: false,
             cg_tolerance: 1e-3,
             weights: LossWeights::default(),
             seed: 0,

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use super::adam::Adam;
 use super::children::ChildMap;
-use super::losses::{image_loss, median_segment_length, regularizers, LossTerms, LossWeights};
+use super::losses::{image_loss, median_segment_length, regularizers, second_differences, LossTerms, LossWeights};
 use super::reparam::{LaplacianParams, Reparam};
 use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
@@ -79,6 +79,9 @@ pub struct Evaluator {
     /// Factor of the regularizers: the mean hair area of a view in pixels over the number of
     /// optimized points (see [`regularizer_factor`]).
     pub reg_factor: f32,
+    /// With `DrOptions::curvature_relative`: the second differences the strands started with,
+    /// which R_c keeps.
+    curvature_ref: Option<Vec<Vec3>>,
     settings: RasterSettings,
 }
 
@@ -183,6 +186,7 @@ impl Evaluator {
             g_render: vec![Vec3::ZERO; n_render],
             scale: median_segment_length(x, offsets),
             reg_factor: regularizer_factor(targets, x.len()),
+            curvature_ref: opts.curvature_relative.then(|| second_differences(x, offsets)),
             settings: RasterSettings {
                 width: Width::World(opts.width_m),
                 shape: SegmentShape::Quad,
@@ -260,7 +264,7 @@ impl Evaluator {
         let w = &opts.weights;
         let f = self.reg_factor;
         let reg_w = LossWeights { curvature: w.curvature * f, length: w.length * f, ..*w };
-        loss += regularizers(x, offsets, self.scale, &reg_w, g_x);
+        loss += regularizers(x, offsets, self.scale, &reg_w, self.curvature_ref.as_deref(), g_x);
         Ok(loss)
     }
 }
