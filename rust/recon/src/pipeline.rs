@@ -168,6 +168,9 @@ pub struct ReconstructOptions {
     /// initial strands, as with `stop_after = Some(Stage::Init)`).
     pub dr: bool,
     pub dr_options: DrOptions,
+    /// When the init carries curls, DR keeps their shape ([`DrOptions::keeping_curls`]); false
+    /// optimizes them with `dr_options` as they are (`--dr-plain-curls`).
+    pub dr_keep_curls: bool,
     /// Cut the children before DR where a view sees no hair ([`crate::hull`]); false keeps them whole
     /// (`--no-hull-trim`).
     pub hull_trim: bool,
@@ -196,6 +199,7 @@ impl Default for ReconstructOptions {
             write_pictures: true,
             dr: true,
             dr_options: DrOptions::default(),
+            dr_keep_curls: true,
             hull_trim: true,
             hull: HullParams::default(),
             curl: CurlMode::Auto,
@@ -484,6 +488,8 @@ pub fn reconstruct(
         Ok((flow, guides, children))
     };
     let mut dr_targets: Option<DrTargets> = None;
+    // Whether the strands carry curls (then DR keeps them, see `dr_keep_curls`).
+    let mut curled = false;
     let (guides, children) = if opts.strand_init {
         let curl = match opts.curl {
             CurlMode::Off => None,
@@ -527,6 +533,7 @@ pub fn reconstruct(
         match curl {
             None => (guides, children),
             Some(c) => {
+                curled = true;
                 metrics.insert(
                     "curl".into(),
                     json!({"radius_mm": c.radius * 1e3, "period_mm": c.period * 1e3, "hand": c.hand}),
@@ -610,7 +617,9 @@ pub fn reconstruct(
     let t_targets = t.elapsed().as_secs_f64();
     let t_opt = Instant::now();
     // The guide stage's child map blends as many guides as growing did.
-    let dr_options = DrOptions { child_blend: opts.grow.blend, ..opts.dr_options.clone() };
+    let base = if curled && opts.dr_keep_curls { opts.dr_options.keeping_curls() } else { opts.dr_options.clone() };
+    let dr_options = DrOptions { child_blend: opts.grow.blend, ..base };
+    metrics.insert("dr_keeps_curls".into(), json!(curled && opts.dr_keep_curls));
     let r = dr_optimize(&guides, &children, &targets, scalp.bvh(), Some(&inner), &dr_options, progress)?;
     let t_opt = t_opt.elapsed().as_secs_f64();
     progress.check()?;

@@ -285,6 +285,29 @@ impl Default for DrOptions {
     }
 }
 
+/// R_c's weight when DR keeps curls ([`DrOptions::keeping_curls`]).
+pub const CURL_CURVATURE_WEIGHT: f32 = 5.0;
+/// The learning rate's factor when DR keeps curls ([`DrOptions::keeping_curls`]).
+pub const CURL_LR_SCALE: f32 = 0.5;
+
+impl DrOptions {
+    /// The options for strands that carry curls (helices swept about ringlet axes, `--curl`): R_c
+    /// against the init's own curvature with weight [`CURL_CURVATURE_WEIGHT`] (the curls' shape
+    /// kept, only its change penalized) and the learning rate times [`CURL_LR_SCALE`]. DR's moves
+    /// (4.3 mm at the median on the paper curly capture) carry no information at 1 mm and draw the
+    /// helices out; DR alone on session 29's curly init (`examples/dr_on_capture`, undirected F1 at
+    /// 1 · 2 · 3 mm): these options 18.8 · 72.8 · 92.3 (directed 71.3 at 2 mm), the plain options
+    /// 17.3 · 71.4 · 92.1 (69.5); R_c relative at weight 5 alone 18.1 · 72.2 · 92.3, half the rate
+    /// alone 18.4 · 72.6 · 92.3 (session 30, docs/curly-study.md).
+    pub fn keeping_curls(&self) -> Self {
+        let mut o = self.clone();
+        o.curvature_relative = true;
+        o.weights.curvature = CURL_CURVATURE_WEIGHT;
+        o.lr *= CURL_LR_SCALE;
+        o
+    }
+}
+
 /// A stage of the hierarchy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
