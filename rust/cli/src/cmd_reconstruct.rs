@@ -77,8 +77,8 @@ pub struct ReconstructArgs {
     #[arg(long, default_value_t = DrOptions::default().lr)]
     dr_lr: f32,
     /// With curls, optimize them like any strands: by default DR keeps their shape (curvature held to
-    /// the init's own, half the learning rate), which scored 18.8 · 72.8 · 92.3 against 17.3 · 71.4 ·
-    /// 92.1 at 1 · 2 · 3 mm on the paper curly capture.
+    /// the init's own, half the learning rate), which scored 18.7 · 72.7 · 92.3 against 17.3 · 71.5 ·
+    /// 92.2 at 1 · 2 · 3 mm on the paper curly capture (whole runs, session 30).
     #[arg(long)]
     dr_plain_curls: bool,
     /// DR views rendered per step (random, seeded); more is steadier and slower.
