@@ -617,9 +617,10 @@ pub fn reconstruct(
     let t_targets = t.elapsed().as_secs_f64();
     let t_opt = Instant::now();
     // The guide stage's child map blends as many guides as growing did.
-    let base = if curled && opts.dr_keep_curls { opts.dr_options.keeping_curls() } else { opts.dr_options.clone() };
+    let keep_curls = curled && opts.dr_keep_curls;
+    let base = if keep_curls { opts.dr_options.keeping_curls() } else { opts.dr_options.clone() };
     let dr_options = DrOptions { child_blend: opts.grow.blend, ..base };
-    metrics.insert("dr_keeps_curls".into(), json!(curled && opts.dr_keep_curls));
+    metrics.insert("dr_keeps_curls".into(), json!(keep_curls));
     let r = dr_optimize(&guides, &children, &targets, scalp.bvh(), Some(&inner), &dr_options, progress)?;
     let t_opt = t_opt.elapsed().as_secs_f64();
     progress.check()?;
