@@ -7,7 +7,8 @@ Rows (Dr.Hair's supplement, Table 3; ``docs/method.md``):
 - ``no_guide_opt``, ``no_reparam``, ``no_n`` (w/o guide opt., w/o reparam., w/o N): DR alone, from the
   full run's init, with one switch off: ``dr_on_capture CAPTURE INIT OUT/ROW eval=0 KEY=0`` (the example
   binary of ``hairrecon-recon``; the init is deterministic, so these rows start from the same strands as
-  ``full``), scored with ``hairrecon eval --json``;
+  ``full``), scored with ``hairrecon eval --json``; with ``keep_curls=1`` too when the full run's DR kept
+  curls (``dr_keeps_curls`` in its ``metrics.json``), so the row differs from ``full`` by its switch only;
 - ``no_strand_init``, ``no_global_opt`` (w/o strand init., w/o global opt.): whole runs with
   ``--no-strand-init`` / ``--no-global-opt`` (they change the init).
 
@@ -54,6 +55,12 @@ WHOLE_FLAGS = {"full": [], "no_strand_init": ["--no-strand-init"], "no_global_op
 
 class AblationError(RuntimeError):
     pass
+
+
+def dr_row_keys(name: str, keep_curls: bool) -> list:
+    """``dr_on_capture``'s keys for a DR-only row: its switch off, and the full run's curl options
+    when its DR kept curls (the row then differs from ``full`` by the switch only)."""
+    return ["eval=0", f"{DR_KEYS[name]}=0"] + (["keep_curls=1"] if keep_curls else [])
 
 
 def scores_row(report: dict) -> dict:
@@ -201,8 +208,10 @@ def run(a) -> int:
         full_dir.mkdir(parents=True, exist_ok=True)
         secs, peak = run_measured([exe, "reconstruct", a.capture, "--out", full_dir], a.out / "full.log")
         rows["full"] = {"seconds": secs, "peak_mb": peak}
+    keep_curls = False
     if need_full:
         m = json.loads((full_dir / "metrics.json").read_text())
+        keep_curls = bool(m.get("dr_keeps_curls", False))
         if "dr_strands" not in m:
             raise AblationError(f"{full_dir}/metrics.json has no dr_strands: run the full method (without --no-dr)")
         rows.setdefault("full", {})["scores"] = scores_row(m["dr_strands"])
@@ -226,7 +235,7 @@ def run(a) -> int:
                     link = init / dst
                     if not link.exists():
                         link.symlink_to((full_dir / src).resolve())
-                secs, peak = run_measured([dr_bin, a.capture, init, row_dir, "eval=0", f"{DR_KEYS[name]}=0"],
+                secs, peak = run_measured([dr_bin, a.capture, init, row_dir, *dr_row_keys(name, keep_curls)],
                                           a.out / f"{name}.log")
             report = evaluate(exe, row_dir / "strands.hair", gt)
         else:

@@ -47,3 +47,9 @@ def test_table_keeps_the_supplements_order_and_marks_the_init():
     assert [ln.split("|")[1].strip() for ln in lines[2:]] == ["full", "w/o DR", "w/o N", "w/o global opt."]
     assert "| w/o N | 50.5 / 51.5 / **52.5** | 42.5 · 62.5 | 52.0 | 7 min 35 s, 5.6 GB |" in lines
     assert "**42.5** (before DR 32.5)" in lines[-1] and lines[-1].endswith("| 1 min 1 s |")
+
+
+def test_dr_rows_switch_one_key_off_and_keep_the_full_runs_curl_options():
+    assert ablations.dr_row_keys("no_n", False) == ["eval=0", "n=0"]
+    assert ablations.dr_row_keys("no_reparam", True) == ["eval=0", "reparam=0", "keep_curls=1"]
+    assert ablations.dr_row_keys("no_guide_opt", True)[1] == "guide_opt=0"

@@ -7,7 +7,9 @@
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
 //! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
 //! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`,
-//! `child_parting_reach`, `wo`, `wc`, `wc_rel` (1: R_c against the stage's starting curvature), `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
+//! `child_parting_reach`, `wo`, `wc`, `wc_rel` (1: R_c against the stage's starting curvature), `keep_curls` (1: the
+//! options the pipeline uses when the init carries curls, `DrOptions::keeping_curls`, applied after
+//! the other keys, so it overrides `wc`/`wc_rel` and halves `lr`), `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
 //! Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an
 //! integer: every view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
@@ -83,6 +85,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut diag = false;
     let mut upscale = 1usize;
     let mut eval = true;
+    let mut keep_curls = false;
     for kv in &args[3..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
         let f: f32 = v.parse()?;
@@ -105,6 +108,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,
             "wc_rel" => o.curvature_relative = f > 0.5,
+            "keep_curls" => keep_curls = f > 0.5,
             "seed" => o.seed = f as u64,
             "project_every" => o.project_every = f as usize,
             "diag" => diag = f > 0.5,
@@ -116,6 +120,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "aq" => o.adam_quantile = f,
             _ => return Err(format!("unknown key {k}").into()),
         }
+    }
+    if keep_curls {
+        o = o.keeping_curls();
     }
     println!("{o:?}");
     let guides = read_strands(init.join("guides.hair"))?;
