@@ -294,7 +294,8 @@ impl DrOptions {
     /// The options for strands that carry curls (helices swept about ringlet axes, `--curl`): R_c
     /// against the init's own curvature with weight [`CURL_CURVATURE_WEIGHT`] (the curls' shape
     /// kept, only its change penalized) and the learning rate times [`CURL_LR_SCALE`]. DR's moves
-    /// (4.3 mm at the median on the paper curly capture) carry no information at 1 mm and draw the
+    /// across the strands (1.9 mm at the median on the paper curly capture with the plain options,
+    /// 1.1 mm with these, `scripts/strand_moves.py`) carry no information at 1 mm and draw the
     /// helices out; DR alone on session 29's curly init (`examples/dr_on_capture`, undirected F1 at
     /// 1 · 2 · 3 mm): these options 18.8 · 72.8 · 92.3 (directed 71.3 at 2 mm), the plain options
     /// 17.3 · 71.4 · 92.1 (69.5); R_c relative at weight 5 alone 18.1 · 72.2 · 92.3, half the rate
