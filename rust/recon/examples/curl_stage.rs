@@ -11,6 +11,7 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example curl_stage -- CAPTURE DIR [key=value ...]`
 //! keys: `radius` (mm, 6.5), `period` (mm, 22), `hand` (1 or -1), `normal_sigma`, `axis_sigma` (mm),
+//! `project=1` (flatten the tangents onto the surface before turning them: `CurlOptions::project_axes`),
 //! `save`, `scan`, `onto`, `moved=1` (save the hung axes moved onto the axes at `radius`: what the
 //! pipeline grows from).
 
@@ -55,6 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     "hand" => curl.hand = f,
                     "normal_sigma" => opts.normal_sigma = f / 1000.0,
                     "axis_sigma" => opts.axis_sigma = f / 1000.0,
+                    "project" => opts.project_axes = f != 0.0,
                     _ => return Err(format!("unknown key {k}").into()),
                 }
             }
