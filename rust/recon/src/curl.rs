@@ -786,6 +786,25 @@ mod tests {
 
     const CURL: Curl = Curl { radius: 0.0065, period: 0.022, hand: 1.0 };
 
+    /// The plane `x = x` over `y` and `z` (metres), facing +x, in 5 mm quads.
+    fn plane_facing_x(x: f32, y: [f32; 2], z: [f32; 2]) -> TriMesh {
+        let ny = ((y[1] - y[0]) / 0.005).round() as usize + 1;
+        let nz = ((z[1] - z[0]) / 0.005).round() as usize + 1;
+        let vertices: Vec<Vec3> = (0..nz)
+            .flat_map(|iz| (0..ny).map(move |iy| Vec3::new(x, y[0] + 0.005 * iy as f32, z[0] + 0.005 * iz as f32)))
+            .collect();
+        let mut triangles = Vec::new();
+        for iz in 0..nz - 1 {
+            for iy in 0..ny - 1 {
+                let a = (iz * ny + iy) as u32;
+                let (b, c, d) = (a + 1, a + ny as u32, a + ny as u32 + 1);
+                triangles.push([a, b, c]);
+                triangles.push([b, d, c]);
+            }
+        }
+        TriMesh::new(vertices, triangles, None, None).unwrap()
+    }
+
     /// A helix of `curl` about the z axis, downward from z = 0 (root to tip along -z).
     fn helix(curl: &Curl, len: f32, phi0: f32) -> Vec<Vec3> {
         let n = (len / 0.0005) as usize;
@@ -833,24 +852,7 @@ mod tests {
         let n = positions.len();
         let points = OrientedPoints { positions, directions, confidence: vec![1.0; n] };
         // The hair surface: a plane x = r facing +x, in 5 mm quads.
-        let (ny, nz) = (41usize, 61usize);
-        let vertices: Vec<Vec3> = (0..nz)
-            .flat_map(|iz| {
-                (0..ny).map(move |iy| {
-                    Vec3::new(CURL.radius, -0.1 + 0.005 * iy as f32, 0.09 - 0.005 * (nz - 1 - iz) as f32 - 0.15)
-                })
-            })
-            .collect();
-        let mut triangles = Vec::new();
-        for iz in 0..nz - 1 {
-            for iy in 0..ny - 1 {
-                let a = (iz * ny + iy) as u32;
-                let (b, c, d) = (a + 1, a + ny as u32, a + ny as u32 + 1);
-                triangles.push([a, b, c]);
-                triangles.push([b, d, c]);
-            }
-        }
-        let raw = TriMesh::new(vertices, triangles, None, None).unwrap();
+        let raw = plane_facing_x(CURL.radius, [-0.1, 0.1], [-0.36, -0.06]);
         assert!(raw.face_normal(0).x > 0.99);
         let before: f32 = points.directions.iter().map(|d| d.dot(-Vec3::Z)).sum::<f32>() / n as f32;
         let axes = ringlet_axes(&points, &raw, &CURL, &CurlOptions::default()).unwrap();
@@ -890,23 +892,8 @@ mod tests {
         let n = positions.len();
         assert!(n > 20, "{n} samples");
         let points = OrientedPoints { positions, directions, confidence: vec![1.0; n] };
-        // The hair surface: the plane x = r facing +x, in 5 mm quads (the normals' blur needs vertices near).
-        let (ny, nz) = (21usize, 51usize);
-        let vertices: Vec<Vec3> = (0..nz)
-            .flat_map(|iz| {
-                (0..ny).map(move |iy| Vec3::new(CURL.radius, -0.05 + 0.005 * iy as f32, -0.2 + 0.005 * iz as f32))
-            })
-            .collect();
-        let mut triangles = Vec::new();
-        for iz in 0..nz - 1 {
-            for iy in 0..ny - 1 {
-                let a = (iz * ny + iy) as u32;
-                let (b, c, d) = (a + 1, a + ny as u32, a + ny as u32 + 1);
-                triangles.push([a, b, c]);
-                triangles.push([b, d, c]);
-            }
-        }
-        let raw = TriMesh::new(vertices, triangles, None, None).unwrap();
+        // The hair surface: the plane x = r facing +x (the normals' blur needs vertices near).
+        let raw = plane_facing_x(CURL.radius, [-0.05, 0.05], [-0.2, 0.05]);
         assert!(raw.face_normal(0).x > 0.99);
         // No averaging to speak of: each point's own turned direction.
         let median_off = |project_axes: bool| {
