@@ -876,7 +876,7 @@ mod tests {
 
     #[test]
     fn flattening_the_tangents_keeps_off_side_axes_in_the_surface() {
-        // One ringlet along -z seen from +x, its samples up to 70° either side of the outer side: there
+        // One ringlet along -z seen from +x, its samples 45-70° to either side of the outer side: there
         // the tangent leaves the surface (its x part is sin ψ sin φ), and turning it about the normal
         // without flattening it first tilts the axis out of the surface by about that much.
         let h = helix(&CURL, 0.12, 0.0);
