@@ -255,7 +255,8 @@ impl Reparam {
         // The chains are contiguous and in order: cut `z` at chain ends into runs of about
         // `RUN` slots, one task each.
         const RUN: usize = 1 << 14;
-        let mut runs: Vec<(&[(u32, u32)], usize, &mut [Vec3])> = Vec::new();
+        type Run<'a> = (&'a [(u32, u32)], usize, &'a mut [Vec3]);
+        let mut runs: Vec<Run> = Vec::new();
         let (mut rest, mut base, mut i) = (z, 0usize, 0usize);
         while i < chains.len() {
             let first = i;
