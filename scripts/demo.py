@@ -92,7 +92,7 @@ def main() -> None:
           "--guides", a.guides, "--children", a.children,
           "--dr-iters-guides", a.dr_iters_guides, "--dr-iters-children", a.dr_iters_children,
           "--render", out / "result" / "render.png", "--render-before", out / "result" / "render_before.png",
-          "--render-pair", out / "demo_result.png", "--render-fit", "0.85", "--render-samples", "16"])
+          "--render-pair", out / "demo_result.png", "--render-fit", "0.85", "--render-samples", "64"])
     print("\n[5/5] score the strands before and after DR against the ground truth", flush=True)
     report = []
     for title, pred in (("before DR (initial strands)", out / "result" / "result" / "init_strands.hair"),

@@ -59,6 +59,9 @@ def parse_args(argv):
     ap.add_argument("--render-camera", help="camera for --render (default: the scene camera)")
     ap.add_argument("--render-height", type=int, default=512, help="picture height in pixels (default 512)")
     ap.add_argument("--render-samples", type=int, default=32)
+    ap.add_argument("--render-no-denoise", action="store_true",
+                    help="keep the picture's Monte Carlo noise (by default it is denoised with OpenImageDenoise "
+                         "where this Blender's Cycles has it)")
     ap.add_argument("--render-before", type=Path,
                     help="with --render: also render the strands before DR (result/init_strands.hair) the same way")
     ap.add_argument("--render-pair", type=Path,
@@ -222,7 +225,9 @@ def render_picture(bpy, a, hair):
     scene.cycles.device = "CPU"
     scene.cycles.samples = a.render_samples
     scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
+    scene.cycles.use_denoising = not a.render_no_denoise and oidn_available()
+    if scene.cycles.use_denoising:
+        scene.cycles.denoiser = "OPENIMAGEDENOISE"
     r.resolution_percentage = max(1, round(100 * a.render_height / r.resolution_y))
     r.film_transparent = False
     if scene.world is None:
@@ -238,6 +243,15 @@ def render_picture(bpy, a, hair):
         bg.inputs["Strength"].default_value = 1.0
     r.image_settings.file_format = "PNG"
     return render_to(bpy, a.render, cam)
+
+
+def oidn_available() -> bool:
+    """Whether this Blender's Cycles was built with OpenImageDenoise (the CPU denoiser)."""
+    try:
+        import _cycles
+    except ImportError:
+        return False
+    return bool(getattr(_cycles, "with_openimagedenoise", False))
 
 
 def render_to(bpy, path: Path, cam) -> str:

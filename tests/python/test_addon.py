@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import struct
 import subprocess
 import sys
 import zipfile
@@ -364,6 +365,13 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
     assert vg["unchanged"]
 
 
+def png_size(path):
+    """(width, height) from a PNG's IHDR chunk."""
+    head = Path(path).read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR", path
+    return struct.unpack(">II", head[16:24])
+
+
 def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     """The batch script on the saved scene, with the scalp given on the command line as a vertex
     group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it)."""
@@ -376,10 +384,18 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     proc = subprocess.run(
         [str(PYTHON), str(ROOT / "scripts" / "reconstruct.py"), blend, "--out", str(out),
          "--guides", str(SMALL["guides"]), "--children", str(SMALL["children"]), "--head", "head", "--scalp-group", "scalp",
-         "--dr-iters-guides", "3", "--dr-iters-children", "2"],
+         "--dr-iters-guides", "3", "--dr-iters-children", "2",
+         "--render", str(out / "after.png"), "--render-before", str(out / "before.png"),
+         "--render-pair", str(out / "pair.png"), "--render-height", "64", "--render-samples", "4", "--render-fit", "0.8"],
         capture_output=True, text=True, env=env, timeout=900,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    # the pictures: before and after DR at the height asked, side by side in the pair, and not the same picture
+    sizes = {name: png_size(out / f"{name}.png") for name in ("before", "after", "pair")}
+    (w, h) = sizes["after"]
+    assert sizes["before"] == (w, h) and abs(h - 64) <= 1, sizes
+    assert sizes["pair"][1] == h and sizes["pair"][0] == 2 * w + 4, sizes  # a 4 px gap at this height
+    assert (out / "before.png").read_bytes() != (out / "after.png").read_bytes()
     assert "hairrecon:" in proc.stdout and "%" in proc.stdout  # progress lines
     summary = json.loads((out / "summary.json").read_text())
     assert summary["strands"]["count"] == SMALL["children"] and summary["guides"]["count"] == SMALL["guides"]
