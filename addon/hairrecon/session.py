@@ -21,7 +21,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
-from .core.capture import CaptureInputError, MeshData, check_mesh, check_views, write_capture
+from .core.capture import CaptureInputError, MeshData, check_mesh, check_views, direct_color, hair_color, write_capture
 from . import scene_build, scene_read
 
 
@@ -72,6 +72,8 @@ class Session:
         self.job = None
         self.started = 0.0
         self.result: Optional[dict] = None
+        # the hair material's direct colour, from the hair's colour in the photos; None: a default brown
+        self.hair_color: Optional[tuple] = None
 
     # --- preparing ----------------------------------------------------------------------------
 
@@ -164,6 +166,8 @@ class Session:
             options["curl"] = curl_option(s.curl, s.curl_radius_mm, s.curl_period_mm, s.curl_left)
         session = cls(capture_dir, out_dir, keep, options, surface, group)
         session.root = root
+        seen = hair_color(views)
+        session.hair_color = direct_color(seen) if seen is not None else None
         return session
 
     @staticmethod
@@ -242,7 +246,7 @@ class Session:
             had_rest = surface.add_rest_position_attribute
             uv_layer_name = scene_build.ensure_uv_map(surface, self.group or None)
             try:
-                material = created.add(scene_build.hair_material("Hair"))
+                material = created.add(scene_build.hair_material("Hair", self.hair_color))
                 summary = {"objects": [], "seconds": time.monotonic() - self.started}
                 base = f"{surface.name} Hair"
                 for k in ("strands", "guides"):

@@ -224,6 +224,11 @@ def curves_report(obj) -> dict:
     mats = [mt.name for mt in cv.materials if mt]
     out["materials"] = mats
     out["material_nodes"] = sorted({n.bl_idname for mt in cv.materials if mt and mt.node_tree for n in mt.node_tree.nodes})
+    hair_nodes = [n for mt in cv.materials if mt and mt.node_tree for n in mt.node_tree.nodes
+                  if n.bl_idname == "ShaderNodeBsdfHairPrincipled"]
+    if hair_nodes:
+        out["hair_parametrization"] = hair_nodes[0].parametrization
+        out["hair_color"] = [float(x) for x in next(i for i in hair_nodes[0].inputs if i.name == "Color").default_value[:3]]
     surf = cv.surface
     if surf is None:
         return out

@@ -66,6 +66,60 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.04045, x / 12.92, np.power((x + 0.055) / 1.055, 2.4))
+
+
+def hair_color(views: Sequence["ViewInput"], min_coverage: int = 230, max_samples: int = 200_000) -> Optional[tuple]:
+    """The hair's colour in the photos: the per-channel median, in linear RGB, of the photo pixels
+    that the masks cover fully (mask value at least ``min_coverage`` of 255), pooled over the views,
+    at most ``max_samples`` pixels per view (evenly strided). None without masks or with fewer than
+    100 such pixels: the photos alone do not tell hair from the rest."""
+    samples = []
+    for v in views:
+        if v.photo is None or v.mask is None:
+            continue
+        photo = v.photo[..., :3]
+        mask = v.mask.reshape(v.mask.shape[0], v.mask.shape[1], -1)[..., 0]
+        if mask.shape != photo.shape[:2]:
+            continue  # a photo at another size than its mask: the pixels do not correspond
+        px = photo[mask >= min_coverage]
+        if len(px) > max_samples:
+            px = px[:: -(-len(px) // max_samples)]
+        samples.append(px)
+    if not samples or sum(len(s) for s in samples) < 100:
+        return None
+    lin = srgb_to_linear(np.concatenate(samples).astype(np.float64) / 255.0)
+    return tuple(float(c) for c in np.median(lin, axis=0))
+
+
+# The Principled Hair BSDF's direct colouring C (grey) against the median linear value of the fully
+# covered hair pixels it renders to, under a uniform white environment of strength 1 (the synthetic
+# captures' light): `.venv/bin/python scripts/hair_color_curve.py out/demo/capture` on the demo's
+# capture (20,000 wavy strands, 16 views of 171x256 px), session 33. The response is far from the
+# identity: C = 0.1 renders to 0.25, and the specular lobe keeps dark hair above 0.04.
+DIRECT_COLOR_RESPONSE = ((0.005, 0.0429), (0.01, 0.0584), (0.02, 0.0847), (0.05, 0.1539), (0.1, 0.2490),
+                         (0.2, 0.4059), (0.35, 0.5651), (0.5, 0.6594), (0.7, 0.7264), (0.9, 0.7465))
+
+
+def direct_color(observed: Sequence[float]) -> tuple:
+    """The direct colouring C per channel whose render (by DIRECT_COLOR_RESPONSE) has the observed
+    linear value: log-log interpolation in the table, extended below its first row along its first
+    segment, C within [0.001, 0.9]."""
+    cs = np.log([c for c, _ in DIRECT_COLOR_RESPONSE])
+    vs = np.log([v for _, v in DIRECT_COLOR_RESPONSE])
+    out = []
+    for o in observed:
+        lo = np.log(max(float(o), 1e-6))
+        if lo <= vs[0]:
+            c = cs[0] + (lo - vs[0]) * (cs[1] - cs[0]) / (vs[1] - vs[0])
+        else:
+            c = float(np.interp(lo, vs, cs))
+        out.append(float(np.clip(np.exp(c), 0.001, 0.9)))
+    return tuple(out)
+
+
 def pixels_to_uint8(flat_rgba: np.ndarray, width: int, height: int, linear: bool, channels: int = 4) -> np.ndarray:
     """Blender ``Image.pixels`` (float RGBA, bottom row first) -> uint8 (H, W, C) top row first.
     ``linear`` images (float buffers) are encoded to sRGB; byte images are stored as they are."""
