@@ -141,9 +141,9 @@ def attach(points_local: np.ndarray, counts: np.ndarray, surface: bpy.types.Obje
 
 
 def hair_material(name: str = "Hair", color=None) -> bpy.types.Material:
-    """A Principled Hair BSDF material: with ``color`` (linear RGB, the hair's colour in the photos)
-    its direct colouring, which Cycles turns into the absorption whose multiply scattered colour is
-    that colour; without it a mid brown (melanin 0.6)."""
+    """A Principled Hair BSDF material: with ``color`` (linear RGB; the add-on passes
+    ``core.capture.direct_color`` of the hair's colour in the photos) in the direct colouring
+    parametrization, without it a mid brown (melanin 0.6)."""
     mat = bpy.data.materials.new(name)
     with warnings.catch_warnings():  # Material.use_nodes: needed up to 4.x, deprecated in 5.0
         warnings.simplefilter("ignore", DeprecationWarning)
@@ -155,13 +155,14 @@ def hair_material(name: str = "Hair", color=None) -> bpy.types.Material:
     bsdf = nt.nodes.new("ShaderNodeBsdfHairPrincipled")
     bsdf.location = (-300, 0)
     nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    # sockets by name over all inputs: Blender 5.0's inputs[name] skips those of other parametrizations
     if color is not None:
         bsdf.parametrization = "COLOR"
-        # by name over all inputs: Blender 5.0's inputs[name] skips the sockets of other parametrizations
         socket = next(i for i in bsdf.inputs if i.name == "Color")
         socket.default_value = (*(min(max(float(c), 0.0), 1.0) for c in color[:3]), 1.0)
-    elif "Melanin" in bsdf.inputs:
-        bsdf.inputs["Melanin"].default_value = 0.6
+    else:
+        bsdf.parametrization = "MELANIN"
+        next(i for i in bsdf.inputs if i.name == "Melanin").default_value = 0.6
     return mat
 
 
