@@ -33,24 +33,19 @@ import _hairio as hio  # noqa: E402
 GREYS = [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 0.9]
 
 
+def load_pixels(bpy, path: Path) -> np.ndarray:
+    """An image file's pixels as floats (H, W, channels), top row first."""
+    im = bpy.data.images.load(str(path), check_existing=False)
+    w, h = im.size
+    px = np.empty(w * h * im.channels, np.float32)
+    im.pixels.foreach_get(px)
+    c = im.channels
+    bpy.data.images.remove(im)
+    return px.reshape(h, w, c)[::-1]
+
+
 def load_gray(bpy, path: Path) -> np.ndarray:
-    im = bpy.data.images.load(str(path), check_existing=False)
-    w, h = im.size
-    px = np.empty(w * h * im.channels, np.float32)
-    im.pixels.foreach_get(px)
-    c = im.channels
-    bpy.data.images.remove(im)
-    return px.reshape(h, w, c)[::-1, :, 0]
-
-
-def load_rgb(bpy, path: Path) -> np.ndarray:
-    im = bpy.data.images.load(str(path), check_existing=False)
-    w, h = im.size
-    px = np.empty(w * h * im.channels, np.float32)
-    im.pixels.foreach_get(px)
-    c = im.channels
-    bpy.data.images.remove(im)
-    return px.reshape(h, w, c)[::-1, :, :3]
+    return load_pixels(bpy, path)[..., 0]
 
 
 def render_rgb(bpy, sc, camera: str, out: Path) -> np.ndarray:
@@ -87,7 +82,7 @@ def main(argv=None) -> int:
     if a.check:  # read before the scene replaces bpy.data
         views = []
         for f in sorted((a.capture / "images").glob("*.png")):
-            photo = (np.clip(load_rgb(bpy, f), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+            photo = (np.clip(load_pixels(bpy, f)[..., :3], 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
             mask = (np.clip(load_gray(bpy, a.capture / "masks" / f.name), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
             views.append(core.ViewInput(name=f.stem, camera=None, photo=photo, mask=mask[..., None]))
             photos[f.stem] = photo

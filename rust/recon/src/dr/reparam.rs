@@ -364,6 +364,18 @@ mod tests {
         (pts, offsets)
     }
 
+    /// Solves `M x = b` for a fixed `b` from zero: `x`, `M x` and the largest residual `|M x − b|`.
+    fn solve_fixed(m: &mut Reparam) -> (Vec<Vec3>, Vec<Vec3>, f32) {
+        let n = m.len();
+        let b: Vec<Vec3> = (0..n).map(|i| Vec3::new((i as f32).sin(), (i as f32 * 0.7).cos(), 1.0)).collect();
+        let mut x = vec![Vec3::ZERO; n];
+        m.solve(&b, &mut x);
+        let mut mx = vec![Vec3::ZERO; n];
+        m.apply(&x, &mut mx);
+        let err = mx.iter().zip(&b).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+        (x, mx, err)
+    }
+
     #[test]
     fn solve_inverts_apply_with_and_without_n() {
         let (pts, offsets) = strands();
@@ -371,12 +383,7 @@ mod tests {
             let params = LaplacianParams { lambda: 20.0, k_neighbors: k, neighbor_weight: 1.0, key: KnnKey::Middle };
             let mut m = Reparam::new(&pts, &offsets, &params);
             let n = m.len();
-            let b: Vec<Vec3> = (0..n).map(|i| Vec3::new((i as f32).sin(), (i as f32 * 0.7).cos(), 1.0)).collect();
-            let mut x = vec![Vec3::ZERO; n];
-            m.solve(&b, &mut x);
-            let mut mx = vec![Vec3::ZERO; n];
-            m.apply(&x, &mut mx);
-            let err = mx.iter().zip(&b).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+            let (x, mx, err) = solve_fixed(&mut m);
             assert!(err < 1e-3, "k = {k}: residual {err}, {} iterations", m.last_iterations);
             if k == 0 {
                 assert!(m.last_iterations <= 2, "the preconditioner is exact without N");
@@ -412,12 +419,7 @@ mod tests {
         let mut m = Reparam::new(&pts, &offsets, &params);
         let n = m.len();
         assert!(n > 4 << 14, "{n} free points: several runs");
-        let b: Vec<Vec3> = (0..n).map(|i| Vec3::new((i as f32).sin(), (i as f32 * 0.7).cos(), 1.0)).collect();
-        let mut x = vec![Vec3::ZERO; n];
-        m.solve(&b, &mut x);
-        let mut mx = vec![Vec3::ZERO; n];
-        m.apply(&x, &mut mx);
-        let err = mx.iter().zip(&b).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
+        let (_, _, err) = solve_fixed(&mut m);
         assert!(err < 1e-3 && m.last_iterations <= 2, "residual {err} after {} iterations", m.last_iterations);
     }
 }
