@@ -77,15 +77,17 @@ const SLOTS: usize = 9;
 
 /// The attributes a primitive writes, in the channel layout of [`crate::rasterize`].
 #[inline]
-fn prim_attrs(p: &Prim, nch: usize) -> [f32; 6] {
+fn prim_attrs(screen: &Screen, prim: usize, nch: usize) -> [f32; 6] {
     let mut c = [0.0; 6];
+    let orient = screen.prims[prim].orient();
     c[channel::COVERAGE] = 1.0;
-    c[channel::COS2] = p.orient.x;
-    c[channel::SIN2] = p.orient.y;
+    c[channel::COS2] = orient.x;
+    c[channel::SIN2] = orient.y;
     if nch >= 6 {
-        c[channel::DIR3] = p.dir3.x;
-        c[channel::DIR3 + 1] = p.dir3.y;
-        c[channel::DIR3 + 2] = p.dir3.z;
+        let d = screen.dir3[prim];
+        c[channel::DIR3] = d.x;
+        c[channel::DIR3 + 1] = d.y;
+        c[channel::DIR3 + 2] = d.z;
     }
     c
 }
@@ -206,7 +208,7 @@ pub(crate) fn forward(screen: &Screen, buf: &Buffers, out: &mut AaOutput) {
                 }
                 let code = edges[x * SLOTS + 8];
                 if code != NONE {
-                    let cp = prim_attrs(&prims[(code >> 2) as usize], nch);
+                    let cp = prim_attrs(screen, (code >> 2) as usize, nch);
                     let wgt = (1.0 - vals[x * SLOTS + 8]) * INV9;
                     for c in 0..nch {
                         px[c] += wgt * (cp[c] - cs[c]);
@@ -258,7 +260,7 @@ pub(crate) fn backward(
                             let j = (y as i32 + dy) as usize * w + (x as i32 + dx) as usize;
                             &a.data[j * nch..(j + 1) * nch]
                         } else {
-                            pc = prim_attrs(p, nch);
+                            pc = prim_attrs(screen, prim as usize, nch);
                             // The virtual neighbour's colour is the primitive's: orientation gradient.
                             dirs.push((prim, orient_grad(p, wk * gs[channel::COS2], wk * gs[channel::SIN2])));
                             &pc[..nch]

@@ -222,7 +222,7 @@ mod tests {
         let h = 1e-2f32;
         for k in 0..4 {
             for axis in 0..2 {
-                let (mut cp, mut cm) = (p.corners, p.corners);
+                let (mut cp, mut cm) = (p.corners(), p.corners());
                 cp[k][axis] += h;
                 cm[k][axis] -= h;
                 let fd =

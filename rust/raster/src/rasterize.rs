@@ -68,10 +68,11 @@ impl Buffers {
 /// The pixel centres within the bounding box of `p` grown by `margin` pixels.
 #[inline]
 pub(crate) fn pixel_range_margin(p: &crate::screen::Prim, w: u32, h: u32, margin: f32) -> Option<[usize; 4]> {
-    let x0 = (p.bbox[0] - margin).ceil().max(0.0);
-    let y0 = (p.bbox[1] - margin).ceil().max(0.0);
-    let x1 = (p.bbox[2] + margin).floor().min(w as f32 - 1.0);
-    let y1 = (p.bbox[3] + margin).floor().min(h as f32 - 1.0);
+    let bbox = p.bbox();
+    let x0 = (bbox[0] - margin).ceil().max(0.0);
+    let y0 = (bbox[1] - margin).ceil().max(0.0);
+    let x1 = (bbox[2] + margin).floor().min(w as f32 - 1.0);
+    let y1 = (bbox[3] + margin).floor().min(h as f32 - 1.0);
     if x0 > x1 || y0 > y1 {
         return None;
     }
@@ -150,7 +151,7 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
     );
     let nch = if screen.settings.direction_3d { 6 } else { 3 };
     buf.attrs.reset(w, h, nch);
-    let ids = &buf.ids;
+    let (ids, dir3) = (&buf.ids, &screen.dir3);
     buf.attrs.data.par_chunks_mut(wu * nch * BAND).enumerate().for_each(|(band, a)| {
         let base = band * BAND * wu;
         for (k, px) in a.chunks_exact_mut(nch).enumerate() {
@@ -158,14 +159,15 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
             if id == 0 {
                 continue;
             }
-            let p = &prims[id as usize - 1];
+            let orient = prims[id as usize - 1].orient();
             px[channel::COVERAGE] = 1.0;
-            px[channel::COS2] = p.orient.x;
-            px[channel::SIN2] = p.orient.y;
+            px[channel::COS2] = orient.x;
+            px[channel::SIN2] = orient.y;
             if nch == 6 {
-                px[channel::DIR3] = p.dir3.x;
-                px[channel::DIR3 + 1] = p.dir3.y;
-                px[channel::DIR3 + 2] = p.dir3.z;
+                let d = dir3[id as usize - 1];
+                px[channel::DIR3] = d.x;
+                px[channel::DIR3 + 1] = d.y;
+                px[channel::DIR3 + 2] = d.z;
             }
         }
     });

@@ -53,11 +53,16 @@ impl Default for RasterSettings {
     }
 }
 
-/// One segment's screen primitive.
+/// One segment's screen primitive. Kept small (56 bytes): the rasterizer streams millions of them
+/// per view and DR's steps are bound by that traffic (64 more bytes per primitive made a DR step
+/// 17% slower on the demo's capture, session 33), so the corners, the bounding box and the
+/// orientation are derived on use, by the same arithmetic each time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Prim {
     /// First vertex (root side) in pixels.
     pub a: Vec2,
+    /// Second vertex in pixels.
+    pub b: Vec2,
     /// Unit direction of `b − a`.
     pub u: Vec2,
     /// Unit normal, `perp(u) = (−u.y, u.x)`.
@@ -70,18 +75,48 @@ pub struct Prim {
     /// Camera depths at `a` and `b`.
     pub z0: f32,
     pub z1: f32,
-    /// Corners `a + n·hw0`, `b + n·hw1`, `b − n·hw1`, `a − n·hw0`; edge `k` joins corner `k` and `k + 1`.
-    pub corners: [Vec2; 4],
-    /// Pixel bounding box `[xmin, ymin, xmax, ymax]`.
-    pub bbox: [f32; 4],
-    /// `(cos 2θ, sin 2θ)` of the screen direction.
-    pub orient: Vec2,
-    /// Unit 3D direction (zero when not projected from 3D).
-    pub dir3: Vec3,
     pub valid: bool,
 }
 
 impl Prim {
+    /// Corner `k` of `a + n·hw0`, `b + n·hw1`, `b − n·hw1`, `a − n·hw0`; edge `k` joins corner `k`
+    /// and `k + 1`.
+    #[inline]
+    pub fn corner(&self, k: usize) -> Vec2 {
+        match k & 3 {
+            0 => self.a + self.n * self.hw0,
+            1 => self.b + self.n * self.hw1,
+            2 => self.b - self.n * self.hw1,
+            _ => self.a - self.n * self.hw0,
+        }
+    }
+
+    /// The four corners, see [`Prim::corner`].
+    #[inline]
+    pub fn corners(&self) -> [Vec2; 4] {
+        [self.corner(0), self.corner(1), self.corner(2), self.corner(3)]
+    }
+
+    /// Pixel bounding box of the corners, `[xmin, ymin, xmax, ymax]`.
+    #[inline]
+    pub fn bbox(&self) -> [f32; 4] {
+        let mut bbox = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+        for c in self.corners() {
+            bbox[0] = bbox[0].min(c.x);
+            bbox[1] = bbox[1].min(c.y);
+            bbox[2] = bbox[2].max(c.x);
+            bbox[3] = bbox[3].max(c.y);
+        }
+        bbox
+    }
+
+    /// `(cos 2θ, sin 2θ)` of the screen direction.
+    #[inline]
+    pub fn orient(&self) -> Vec2 {
+        let u = self.u;
+        Vec2::new(u.x * u.x - u.y * u.y, 2.0 * u.x * u.y)
+    }
+
     /// Signed position of a point in the primitive's frame: `(t, s)` with `t` in `[0, 1]` along the axis.
     #[inline]
     pub fn local(&self, x: Vec2) -> (f32, f32) {
@@ -106,8 +141,8 @@ impl Prim {
     /// Edge `k` as its two end corners; `None` for the zero-length tip edge of a triangle.
     #[inline]
     pub fn edge(&self, k: usize) -> Option<(Vec2, Vec2)> {
-        let e0 = self.corners[k];
-        let e1 = self.corners[(k + 1) & 3];
+        let e0 = self.corner(k);
+        let e1 = self.corner(k + 1);
         if (e1 - e0).length_squared() < 1e-12 {
             None
         } else {
@@ -123,16 +158,7 @@ impl Prim {
         }
         let u = d / len;
         let n = Vec2::new(-u.y, u.x);
-        let corners = [a + n * hw0, b + n * hw1, b - n * hw1, a - n * hw0];
-        let mut bbox = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
-        for c in corners {
-            bbox[0] = bbox[0].min(c.x);
-            bbox[1] = bbox[1].min(c.y);
-            bbox[2] = bbox[2].max(c.x);
-            bbox[3] = bbox[3].max(c.y);
-        }
-        let orient = Vec2::new(u.x * u.x - u.y * u.y, 2.0 * u.x * u.y);
-        Prim { a, u, n, len, hw0, hw1, z0, z1, corners, bbox, orient, dir3: Vec3::ZERO, valid: true }
+        Prim { a, b, u, n, len, hw0, hw1, z0, z1, valid: true }
     }
 }
 
@@ -173,6 +199,8 @@ pub struct Screen {
     pub(crate) valid: Vec<bool>,
     pub(crate) segs: Vec<[u32; 2]>,
     pub(crate) prims: Vec<Prim>,
+    /// Unit 3D direction of each segment, with `direction_3d` (else empty).
+    pub(crate) dir3: Vec<Vec3>,
     pub(crate) settings: RasterSettings,
     /// `f_y`, for the depth-dependent world width.
     pub(crate) fy: f32,
@@ -362,10 +390,17 @@ impl Screen {
                 SegmentShape::Triangle => 0.0,
             };
             *p = Prim::build(pos[ia], pos[ib], hw[ia], hw1, depth[ia], depth[ib]);
-            if let Some(x) = points {
-                p.dir3 = (x[ib] - x[ia]).normalize_or_zero();
-            }
         });
+        self.dir3.clear();
+        if let Some(x) = points {
+            self.dir3.par_extend(self.segs.par_iter().zip(self.prims.par_iter()).map(|(s, p)| {
+                if p.valid {
+                    (x[s[1] as usize] - x[s[0] as usize]).normalize_or_zero()
+                } else {
+                    Vec3::ZERO
+                }
+            }));
+        }
     }
 
     /// Maps per-segment gradients (corners, screen direction) to per-vertex pixel and half-width

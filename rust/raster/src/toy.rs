@@ -104,7 +104,8 @@ pub fn coverage_image(size: u32, root: Vec2, tip: Vec2, width_px: f32) -> Result
         for x in 0..size {
             let c = Vec2::new(x as f32, y as f32);
             // Only pixels near the bounding box can be covered.
-            if c.x < p.bbox[0] - 1.0 || c.x > p.bbox[2] + 1.0 || c.y < p.bbox[1] - 1.0 || c.y > p.bbox[3] + 1.0 {
+            let bbox = p.bbox();
+            if c.x < bbox[0] - 1.0 || c.x > bbox[2] + 1.0 || c.y < bbox[1] - 1.0 || c.y > bbox[3] + 1.0 {
                 continue;
             }
             let mut n = 0;

@@ -60,3 +60,41 @@ fn triangle_tapers_to_its_apex() {
     assert_eq!(b.id(30, 4), 0);
     assert_eq!(b.id(30, 5), 1);
 }
+
+#[test]
+fn the_3d_direction_channels_hold_each_visible_segments_direction() {
+    use glam::Vec3;
+    use hairrecon_core::Camera;
+    use hairrecon_raster::{AaMethod, Renderer};
+    // Two 3D segments seen from +z: one along x (in front), one along y tilted in depth (behind it).
+    let cam = Camera::look_at(Vec3::new(0.0, 0.0, 1.0), Vec3::ZERO, Vec3::Y, 0.8, 64, 64).unwrap();
+    let pts =
+        [Vec3::new(-0.2, 0.0, 0.1), Vec3::new(0.2, 0.0, 0.1), Vec3::new(0.1, -0.2, -0.1), Vec3::new(0.1, 0.2, 0.0)];
+    let segs = [[0, 1], [2, 3]];
+    let settings = RasterSettings { width: Width::Pixels(3.0), shape: SegmentShape::Quad, direction_3d: true };
+    let s = Screen::project(&cam, &pts, &segs, settings).unwrap();
+    let mut b = Buffers::new();
+    rasterize(&s, &mut b);
+    let mut r = Renderer::new(AaMethod::Ours);
+    let aa = r.forward(&cam, &pts, &segs, settings).unwrap().clone();
+    for (seg, at) in [(0usize, Vec3::new(-0.1, 0.0, 0.1)), (1, Vec3::new(0.1, 0.15, -0.0125))] {
+        let px = cam.project(at).unwrap().pixel.round();
+        let (x, y) = (px.x as u32, px.y as u32);
+        assert_eq!(b.id(x, y), seg as u32 + 1, "pixel ({x}, {y})");
+        let want = (pts[2 * seg + 1] - pts[2 * seg]).normalize();
+        for k in 0..3 {
+            assert!((b.attrs.at(x, y, channel::DIR3 + k) - want[k]).abs() < 1e-6, "segment {seg}, raster");
+            assert!((aa.at(x, y, channel::DIR3 + k) - want[k]).abs() < 1e-6, "segment {seg}, anti-aliased");
+        }
+    }
+    // where the nearer segment crosses the other, its direction wins
+    let px = cam.project(Vec3::new(0.1, 0.0, 0.1)).unwrap().pixel.round();
+    assert_eq!(b.id(px.x as u32, px.y as u32), 1);
+    assert!((b.attrs.at(px.x as u32, px.y as u32, channel::DIR3) - 1.0).abs() < 1e-6);
+}
+
+/// The primitive stays small: the rasterizer streams millions of them per view (see [`Prim`]).
+#[test]
+fn a_primitive_is_56_bytes() {
+    assert_eq!(std::mem::size_of::<hairrecon_raster::Prim>(), 56);
+}

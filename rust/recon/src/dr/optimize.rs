@@ -4,7 +4,7 @@
 //!
 //! Per step: pick `views_per_step` views at random (seeded), render the strands in each (rayon
 //! over views, in rounds of as many views as threads, each round's views sharing the renderers
-//! of a pool: a renderer holds ~190 bytes per segment, 1.9 GB for 50,000 children of 200 points),
+//! of a pool: a renderer holds ~130 bytes per segment, 1.3 GB for 50,000 children of 200 points),
 //! take ∂(L_m + L_o)/∂points from the renderer's backward
 //! pass, add the regularizers, map the gradient to u (`M⁻¹ g`, [`Reparam`]), take an Adam step in u
 //! and move the points by `M⁻¹ Δu`. Roots never move. Every `project_every` steps and at the end,
