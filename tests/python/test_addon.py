@@ -12,7 +12,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
-import struct
 import subprocess
 import sys
 import zipfile
@@ -403,13 +402,6 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
     assert vg["unchanged"]
 
 
-def png_size(path):
-    """(width, height) from a PNG's IHDR chunk."""
-    head = Path(path).read_bytes()[:24]
-    assert head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR", path
-    return struct.unpack(">II", head[16:24])
-
-
 def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     """The batch script on the saved scene, with the scalp given on the command line as a vertex
     group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it)."""
@@ -429,6 +421,8 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     # the pictures: before and after DR at the height asked, side by side in the pair, and not the same picture
+    load_core()
+    from hairrecon_addon_core.capture import png_size  # None for a file that is not a PNG
     sizes = {name: png_size(out / f"{name}.png") for name in ("before", "after", "pair")}
     (w, h) = sizes["after"]
     assert sizes["before"] == (w, h) and abs(h - 64) <= 1, sizes
