@@ -9,12 +9,13 @@
 3. imports the capture into a Blender scene with the extension's Import Capture operator;
 4. reconstructs the hair in that scene with the extension (`scripts/reconstruct.py`): initial strands,
    then the strand optimization by differentiable rendering (DR); saves the .blend with the hair
-   Curves and the strands, and renders Cycles pictures of the strands before and after DR;
+   Curves and the strands, and renders Cycles pictures of the ground truth and of the strands before
+   and after DR, all with the extension's hair material;
 5. scores the strands before and after DR against the ground truth (`hairrecon eval`).
 
 Everything lands in OUT: gt.hair, capture/, scene.blend, result/{scene.blend, strands.hair,
-guides.hair, render.png, render_before.png, result/init_strands.hair, result/loss.png},
-demo_result.png (before | after), eval.txt. Run it through `bash scripts/demo.sh`, which sets up the
+guides.hair, render.png, render_before.png, render_gt.png, result/init_strands.hair, result/loss.png},
+demo_result.png (ground truth | before | after), eval.txt. Run it through `bash scripts/demo.sh`, which sets up the
 environment first.
 """
 
@@ -87,11 +88,13 @@ def main() -> None:
     snippet = IMPORT_SNIPPET.format(scripts=str(ROOT / "scripts"), capture=str(out / "capture"),
                                     blend=str(out / "scene.blend"))
     step(3, "import the capture into a Blender scene (Import Capture)", [PY, "-c", snippet])
-    step(4, "reconstruct the hair in Blender (Reconstruct Hair, batch: init + DR) and render it before and after DR",
+    step(4, "reconstruct the hair in Blender (Reconstruct Hair, batch: init + DR); render the ground truth "
+            "and the strands before and after DR",
          [PY, ROOT / "scripts" / "reconstruct.py", out / "scene.blend", "--out", out / "result",
           "--guides", a.guides, "--children", a.children,
           "--dr-iters-guides", a.dr_iters_guides, "--dr-iters-children", a.dr_iters_children,
           "--render", out / "result" / "render.png", "--render-before", out / "result" / "render_before.png",
+          "--gt-strands", out / "gt.hair", "--render-gt", out / "result" / "render_gt.png",
           "--render-pair", out / "demo_result.png", "--render-fit", "0.85", "--render-samples", "64"])
     print("\n[5/5] score the strands before and after DR against the ground truth", flush=True)
     report = []

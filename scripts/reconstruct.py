@@ -12,7 +12,9 @@ the .blend (Hair panel) or the overrides below, and writes into DIR:
     guides.hair         the guide strands
     summary.json        objects, strand counts, root distances, stage times, metrics (with ground truth)
                         (before DR: "init_strands"; after: "dr_strands")
-    render.png          with --render: a Cycles picture of the result from a scene camera
+    render.png          with --render: a Cycles picture of the result from a scene camera (with
+                        --render-before and --render-gt, the strands before DR and the ground truth
+                        the same way; --render-pair puts them side by side)
     capture/, result/   the capture folder written from the scene and the library's own output
                         (result/init_strands.hair: the strands before DR; result/loss.csv, loss.png)
 
@@ -65,7 +67,14 @@ def parse_args(argv):
     ap.add_argument("--render-before", type=Path,
                     help="with --render: also render the strands before DR (result/init_strands.hair) the same way")
     ap.add_argument("--render-pair", type=Path,
-                    help="with --render and --render-before: the two pictures side by side, before on the left")
+                    help="with --render and --render-before: the pictures side by side, before on the left "
+                         "(ground truth, before, after with --render-gt)")
+    ap.add_argument("--gt-strands", type=Path,
+                    help="ground-truth strands (.hair, .data, .ply or .obj; e.g. a synthetic capture's gt/strands.hair) "
+                         "for --render-gt")
+    ap.add_argument("--render-gt", type=Path,
+                    help="with --render: also render --gt-strands the same way (the result's material, strand radii, "
+                         "camera and settings) to this PNG")
     ap.add_argument("--render-fit", type=float, default=0.0,
                     help="frame the head and hair: a picture camera from the chosen camera's side, at a distance "
                          "where they fill this share of the picture height (e.g. 0.8; 0 = the camera as it is)")
@@ -289,13 +298,71 @@ def render_before(bpy, hr, a, hair, init_strands: Path) -> str:
         cv.update_tag()
 
 
-# a 3x5 pixel font for the labels of the before/after picture
+def check_gt_args(a):
+    """Refuses --render-gt without what it needs, before anything runs."""
+    if a.render_gt is None:
+        return
+    if a.render is None:
+        raise Failure("--render-gt needs --render (it renders the ground truth from the same camera)")
+    if a.gt_strands is None:
+        raise Failure("--render-gt needs --gt-strands, the ground-truth strand file to render")
+    if not a.gt_strands.is_file():
+        raise Failure(f"--gt-strands: {a.gt_strands} does not exist")
+
+
+def read_gt(a):
+    """The --gt-strands file as (points, counts), read before the reconstruction so that a bad file
+    fails at once; None without --render-gt."""
+    if a.render_gt is None:
+        return None
+    import hairrecon as hr
+
+    try:
+        return hr.read_strands(str(a.gt_strands))
+    except Exception as e:  # the library's reader says what is wrong with the file
+        raise Failure(f"--gt-strands: {a.gt_strands}: {e}") from None
+
+
+def render_gt(bpy, hr, package: str, a, hair, gt) -> str:
+    """Renders the ground-truth strands ``gt`` in place of the result's: a temporary Curves object with
+    the result's material and root/tip radii, from the same camera with the same settings; the
+    object is removed afterwards and the result shown again."""
+    import importlib
+
+    import numpy as np
+
+    build = importlib.import_module(f"{package}.scene_build")
+    obj = next(o for o in hair if not o.name.endswith("Guides"))
+    radius = np.empty(len(obj.data.points), np.float32)
+    obj.data.attributes["radius"].data.foreach_get("value", radius)
+    first = obj.data.curves[0].points_length
+    pts, counts = gt
+    cv = build.new_hair_curves("hairrecon ground truth", np.asarray(pts, np.float32).reshape(-1, 3),
+                               np.asarray(counts), float(radius[0]), float(radius[first - 1]))
+    ref = None
+    hidden = obj.hide_render
+    try:
+        for m in obj.data.materials:
+            cv.materials.append(m)
+        ref = bpy.data.objects.new("hairrecon ground truth", cv)
+        bpy.context.scene.collection.objects.link(ref)
+        obj.hide_render = True
+        return render_to(bpy, a.render_gt, bpy.context.scene.camera)
+    finally:
+        obj.hide_render = hidden
+        if ref is not None:
+            bpy.data.objects.remove(ref)
+        bpy.data.hair_curves.remove(cv)
+
+
+# a 3x5 pixel font for the labels of the side-by-side pictures
 _GLYPHS = {
     "A": "010 101 111 101 101", "B": "110 101 110 101 110", "D": "110 101 101 101 110",
     "E": "111 100 110 100 111", "F": "111 100 110 100 100", "I": "111 010 010 010 111",
     "N": "110 101 101 101 101", "O": "111 101 101 101 111", "R": "110 101 110 101 101",
     "T": "111 010 010 010 010", " ": "000 000 000 000 000", "(": "001 010 010 010 001",
-    ")": "100 010 010 010 100",
+    ")": "100 010 010 010 100", "G": "111 100 101 101 111", "H": "101 101 111 101 101",
+    "U": "101 101 101 101 111",
 }
 
 
@@ -312,12 +379,12 @@ def _label(img, text: str, scale: int):
                     img[y:y + scale, x:x + scale, :3] = 1.0
 
 
-def render_pair(bpy, before: Path, after: Path, out: Path) -> str:
-    """``before`` and ``after`` side by side, labelled, as one PNG."""
+def render_pair(bpy, panels: list[tuple[Path, str]], out: Path) -> str:
+    """The pictures ``panels`` (path, label) side by side, labelled, as one PNG."""
     import numpy as np
 
     imgs = []
-    for p, label in ((before, "before DR (init)"), (after, "after DR")):
+    for p, label in panels:
         im = bpy.data.images.load(str(p), check_existing=False)
         w, h = im.size
         px = np.empty(w * h * 4, np.float32)
@@ -328,9 +395,9 @@ def render_pair(bpy, before: Path, after: Path, out: Path) -> str:
         imgs.append(top_first)
     h = max(i.shape[0] for i in imgs)
     gap = np.ones((h, max(4, h // 100), 4), np.float32)
-    pair = np.concatenate([imgs[0], gap, imgs[1]], axis=1)
+    pair = np.concatenate([x for im in imgs for x in (gap, im)][1:], axis=1)
     out.parent.mkdir(parents=True, exist_ok=True)
-    im = bpy.data.images.new("hairrecon before after", pair.shape[1], pair.shape[0], alpha=True)
+    im = bpy.data.images.new("hairrecon panels", pair.shape[1], pair.shape[0], alpha=True)
     im.pixels.foreach_set(np.ascontiguousarray(pair[::-1]).ravel())
     im.filepath_raw = str(out.resolve())
     im.file_format = "PNG"
@@ -341,6 +408,7 @@ def render_pair(bpy, before: Path, after: Path, out: Path) -> str:
 
 
 def run(a) -> dict:
+    check_gt_args(a)
     import bpy
 
     if a.blend is not None:
@@ -350,6 +418,7 @@ def run(a) -> dict:
     elif not bpy.data.filepath:
         raise Failure("no .blend given: pass the scene file (or run `blender -b scene.blend -P reconstruct.py -- ...`)")
     package = ensure_addon(bpy)
+    gt = read_gt(a)  # the library is importable once the add-on is
     print(f"hairrecon: add-on {package}; scene {bpy.data.filepath}", flush=True)
     apply_overrides(bpy, a)
     out = a.out.resolve()
@@ -383,12 +452,17 @@ def run(a) -> dict:
     if a.render is not None:
         summary["render"] = render_picture(bpy, a, hair)
         init = out / "result" / "init_strands.hair"
+        if a.render_gt is not None:
+            summary["render_gt"] = render_gt(bpy, hr, package, a, hair, gt)
         if a.render_before is not None:
             if not init.is_file():
                 raise Failure(f"--render-before: {init} does not exist (did DR run?)")
             summary["render_before"] = render_before(bpy, hr, a, hair, init)
             if a.render_pair is not None:
-                summary["render_pair"] = render_pair(bpy, a.render_before, a.render, a.render_pair)
+                panels = [(a.render_before, "before DR (init)"), (a.render, "after DR")]
+                if a.render_gt is not None:
+                    panels.insert(0, (a.render_gt, "ground truth"))
+                summary["render_pair"] = render_pair(bpy, panels, a.render_pair)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 

@@ -402,7 +402,7 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
     assert vg["unchanged"]
 
 
-def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
+def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture, tmp_path):
     """The batch script on the saved scene, with the scalp given on the command line as a vertex
     group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it)."""
     blend = pipeline["saved"]
@@ -416,20 +416,24 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
          "--guides", str(SMALL["guides"]), "--children", str(SMALL["children"]), "--head", "head", "--scalp-group", "scalp",
          "--dr-iters-guides", "3", "--dr-iters-children", "2",
          "--render", str(out / "after.png"), "--render-before", str(out / "before.png"),
-         "--render-pair", str(out / "pair.png"), "--render-height", "64", "--render-samples", "4", "--render-fit", "0.8"],
+         "--render-pair", str(out / "pair.png"), "--render-height", "64", "--render-samples", "4", "--render-fit", "0.8",
+         "--gt-strands", str(Path(test_capture) / "gt" / "strands.hair"), "--render-gt", str(out / "gt.png")],
         capture_output=True, text=True, env=env, timeout=900,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    # the pictures: before and after DR at the height asked, side by side in the pair, and not the same picture
+    # the pictures: ground truth, before and after DR at the height asked, side by side in that order
+    # in the pair, and no two the same picture
     load_core()
     from hairrecon_addon_core.capture import png_size  # None for a file that is not a PNG
-    sizes = {name: png_size(out / f"{name}.png") for name in ("before", "after", "pair")}
+    sizes = {name: png_size(out / f"{name}.png") for name in ("gt", "before", "after", "pair")}
     (w, h) = sizes["after"]
-    assert sizes["before"] == (w, h) and abs(h - 64) <= 1, sizes
-    assert sizes["pair"][1] == h and sizes["pair"][0] == 2 * w + 4, sizes  # a 4 px gap at this height
-    assert (out / "before.png").read_bytes() != (out / "after.png").read_bytes()
+    assert sizes["before"] == sizes["gt"] == (w, h) and abs(h - 64) <= 1, sizes
+    assert sizes["pair"][1] == h and sizes["pair"][0] == 3 * w + 2 * 4, sizes  # 4 px gaps at this height
+    pictures = [(out / f"{name}.png").read_bytes() for name in ("gt", "before", "after")]
+    assert len(set(pictures)) == 3
     assert "hairrecon:" in proc.stdout and "%" in proc.stdout  # progress lines
     summary = json.loads((out / "summary.json").read_text())
+    assert Path(summary["render_gt"]) == (out / "gt.png").resolve()
     assert summary["strands"]["count"] == SMALL["children"] and summary["guides"]["count"] == SMALL["guides"]
     assert summary["stage_times"] and all(t >= 0 for _, t in summary["stage_times"])
     assert summary["strands"]["max_root_distance_m"] < 1e-3
@@ -469,3 +473,13 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, tmp_path):
     )
     errors = [l for l in both.stderr.splitlines() if l.startswith("error:")]
     assert both.returncode == 1 and len(errors) == 1 and "--scalp-group" in errors[0], both.stderr[-2000:]
+    # a ground truth to render that does not exist is refused before anything runs
+    nogt = subprocess.run(
+        [str(PYTHON), str(ROOT / "scripts" / "reconstruct.py"), blend, "--out", str(tmp_path / "nogt"),
+         "--render", str(tmp_path / "nogt.png"), "--gt-strands", str(tmp_path / "missing.hair"),
+         "--render-gt", str(tmp_path / "gt.png")],
+        capture_output=True, text=True, env=env, timeout=300,
+    )
+    errors = [l for l in nogt.stderr.splitlines() if l.startswith("error:")]
+    assert nogt.returncode == 1 and len(errors) == 1 and "missing.hair" in errors[0], nogt.stderr[-2000:]
+    assert not (tmp_path / "nogt" / "scene.blend").exists()
