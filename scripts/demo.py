@@ -2,7 +2,7 @@
 """The main job on the bundled default: a small synthetic head, end to end, the whole method.
 
     .venv/bin/python scripts/demo.py [--out out/demo] [--style wavy] [--strands 20000] [--seed 7]
-                                     [--guides 500] [--children 20000] [--dr-iters-guides N] [--dr-iters-children N]
+                                     [--guides 2000] [--children 20000] [--dr-iters-guides N] [--dr-iters-children N]
 
 1. generates a hairstyle on the bundled head (`hairrecon synth-hair`), the ground truth;
 2. renders it with headless Cycles into a capture folder (`scripts/render_synthetic.py --preset test`);
@@ -68,7 +68,7 @@ def main() -> None:
     ap.add_argument("--style", default="wavy")
     ap.add_argument("--strands", type=int, default=STRANDS)
     ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--guides", type=int, default=500)
+    ap.add_argument("--guides", type=int, default=2000)
     ap.add_argument("--children", type=int, default=CHILDREN)
     ap.add_argument("--dr-iters-guides", type=int, default=DR_ITERS_GUIDES)
     ap.add_argument("--dr-iters-children", type=int, default=DR_ITERS_CHILDREN)
