@@ -7,8 +7,9 @@ CAPTURE a synthetic capture folder (with `gt/orientation`), ORIENT2D a folder of
 views (a `hairrecon reconstruct` output's `orient2d/`), GT.hair the ground-truth strands. The region
 is the ground-truth points inside the box (metres; by default the front of the crown: |x| < 3 cm,
 y < 3 cm, z > 14 cm on the bundled head). Per view it prints the mean undirected angle between the
-maps and `gt/orientation` over the pixels those points fall on (where both maps have confidence) and
-over all hair pixels, then the means over the views; 45° is what maps of random angles would score.
+maps and `gt/orientation` over the pixels where the view sees those points (within 3 mm of `gt/depth`;
+where both maps have confidence) and over all hair pixels, then the means over the views, and over the
+views grouped by elevation; 45° is what maps of random angles would score.
 Reads EXR through the bpy module.
 """
 
@@ -57,9 +58,10 @@ def main() -> None:
     lo, hi = np.array(a.box[0::2]), np.array(a.box[1::2])
     region = p[np.all((p >= lo) & (p <= hi), axis=1)]
     print(f"{len(region)} ground-truth points in the box")
-    region_err, all_err = [], []
+    region_err, all_err, elevation = [], [], []
     for v in spec["views"]:
         gt = load_exr(bpy, a.capture / v["gt_orientation"])
+        depth = load_exr(bpy, a.capture / v["gt_depth"])[..., 0]
         ours = load_exr(bpy, a.orient2d / f"{v['name']}.exr")
         h, w = gt.shape[:2]
         K, R, t = (np.array(v[k], np.float64) for k in ("K", "R", "t"))
@@ -68,7 +70,9 @@ def main() -> None:
         uv = cam[front] @ K.T
         px = np.round(uv[:, :2] / uv[:, 2:]).astype(np.int64)  # pixel centres at integer coordinates
         inside = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
-        idx = np.unique(px[inside, 1] * w + px[inside, 0])
+        at = px[inside, 1] * w + px[inside, 0]
+        seen = np.abs(cam[front][inside, 2] - depth.reshape(-1)[at]) < 0.003
+        idx = np.unique(at[seen])
         g, o = gt.reshape(h * w, -1), ours.reshape(h * w, -1)
         both = (g[:, 2] > 0.5) & (o[:, 2] > 0)
         sel = idx[both[idx]]
@@ -76,8 +80,16 @@ def main() -> None:
         e_all = angle_error(g[both], o[both]).mean()
         region_err.append(e_region)
         all_err.append(e_all)
-        print(f"{v['name']}: region {e_region:5.1f}° over {len(sel)} px, all hair {e_all:5.1f}°")
+        centre = -R.T @ t
+        elevation.append(np.degrees(np.arcsin(centre[2] / np.linalg.norm(centre))))
+        print(f"{v['name']}: elevation {elevation[-1]:5.1f}°, region {e_region:5.1f}° over {len(sel)} px, "
+              f"all hair {e_all:5.1f}°")
     print(f"mean over the views: region {np.nanmean(region_err):.1f}°, all hair {np.mean(all_err):.1f}°")
+    elevation, region_err = np.array(elevation), np.array(region_err)
+    for lo, hi in ((-90, 30), (30, 60), (60, 90)):
+        sel = (elevation >= lo) & (elevation < hi) & np.isfinite(region_err)
+        if sel.any():
+            print(f"views at elevation {lo}–{hi}°: region {region_err[sel].mean():.1f}° ({sel.sum()} views)")
 
 
 if __name__ == "__main__":
