@@ -58,7 +58,7 @@ def main() -> None:
     lo, hi = np.array(a.box[0::2]), np.array(a.box[1::2])
     region = p[np.all((p >= lo) & (p <= hi), axis=1)]
     print(f"{len(region)} ground-truth points in the box")
-    region_err, all_err, elevation = [], [], []
+    region_err, all_err, elevation, conf = [], [], [], []
     for v in spec["views"]:
         gt = load_exr(bpy, a.capture / v["gt_orientation"])
         depth = load_exr(bpy, a.capture / v["gt_depth"])[..., 0]
@@ -78,18 +78,22 @@ def main() -> None:
         sel = idx[both[idx]]
         e_region = angle_error(g[sel], o[sel]).mean() if len(sel) else float("nan")
         e_all = angle_error(g[both], o[both]).mean()
+        c_region = o[sel, 2].mean() if len(sel) else float("nan")
+        c_all = o[both, 2].mean()
+        conf.append(c_region)
         region_err.append(e_region)
         all_err.append(e_all)
         centre = -R.T @ t
         elevation.append(np.degrees(np.arcsin(centre[2] / np.linalg.norm(centre))))
-        print(f"{v['name']}: elevation {elevation[-1]:5.1f}°, region {e_region:5.1f}° over {len(sel)} px, "
-              f"all hair {e_all:5.1f}°")
+        print(f"{v['name']}: elevation {elevation[-1]:5.1f}°, region {e_region:5.1f}° over {len(sel)} px "
+              f"(confidence {c_region:.2f}), all hair {e_all:5.1f}° ({c_all:.2f})")
     print(f"mean over the views: region {np.nanmean(region_err):.1f}°, all hair {np.mean(all_err):.1f}°")
-    elevation, region_err = np.array(elevation), np.array(region_err)
+    elevation, region_err, conf = np.array(elevation), np.array(region_err), np.array(conf)
     for lo, hi in ((-90, 30), (30, 60), (60, 90)):
         sel = (elevation >= lo) & (elevation < hi) & np.isfinite(region_err)
         if sel.any():
-            print(f"views at elevation {lo}–{hi}°: region {region_err[sel].mean():.1f}° ({sel.sum()} views)")
+            print(f"views at elevation {lo}–{hi}°: region {region_err[sel].mean():.1f}°, confidence "
+                  f"{conf[sel].mean():.2f} ({sel.sum()} views)")
 
 
 if __name__ == "__main__":
