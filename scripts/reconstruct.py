@@ -323,7 +323,7 @@ def read_gt(a):
         raise Failure(f"--gt-strands: {a.gt_strands}: {e}") from None
 
 
-def render_gt(bpy, hr, package: str, a, hair, gt) -> str:
+def render_gt(bpy, package: str, a, hair, gt) -> str:
     """Renders the ground-truth strands ``gt`` in place of the result's: a temporary Curves object with
     the result's material and root/tip radii, from the same camera with the same settings; the
     object is removed afterwards and the result shown again."""
@@ -453,7 +453,7 @@ def run(a) -> dict:
         summary["render"] = render_picture(bpy, a, hair)
         init = out / "result" / "init_strands.hair"
         if a.render_gt is not None:
-            summary["render_gt"] = render_gt(bpy, hr, package, a, hair, gt)
+            summary["render_gt"] = render_gt(bpy, package, a, hair, gt)
         if a.render_before is not None:
             if not init.is_file():
                 raise Failure(f"--render-before: {init} does not exist (did DR run?)")

@@ -421,8 +421,8 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture,
         capture_output=True, text=True, env=env, timeout=900,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    # the pictures: ground truth, before and after DR at the height asked, side by side in that order
-    # in the pair, and no two the same picture
+    # the pictures: ground truth, before and after DR at the height asked, three panels wide in the pair,
+    # and no two the same picture
     load_core()
     from hairrecon_addon_core.capture import png_size  # None for a file that is not a PNG
     sizes = {name: png_size(out / f"{name}.png") for name in ("gt", "before", "after", "pair")}
