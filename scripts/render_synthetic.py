@@ -82,11 +82,13 @@ def parse_args(argv=None):
     p.add_argument("out", type=Path, help="capture folder to write (created; existing files are replaced)")
     p.add_argument("--scalp", type=Path, help="scalp mesh PLY to copy into the capture as scalp.ply")
     p.add_argument("--preset", choices=sorted(PRESETS), default="test")
-    p.add_argument("--views", type=int, help="number of cameras (preset: test 16, paper 58, colors 30)")
-    p.add_argument(
-        "--height", type=int, help="image height in pixels, width = 2/3 of it (test 256, paper 512, colors 384)"
-    )
-    p.add_argument("--samples", type=int, help="Cycles samples per pixel (test 32, paper 128, colors 32)")
+
+    def by_preset(key):
+        return ", ".join(f"{name} {prm[key]}" for name, prm in PRESETS.items())
+
+    p.add_argument("--views", type=int, help=f"number of cameras (preset: {by_preset('views')})")
+    p.add_argument("--height", type=int, help=f"image height in pixels, width = 2/3 of it ({by_preset('height')})")
+    p.add_argument("--samples", type=int, help=f"Cycles samples per pixel ({by_preset('samples')})")
     p.add_argument("--color", choices=sorted(COLORS), default="brown", help="hair colour")
     p.add_argument("--seed", type=int, default=0, help="Cycles seed and colour randomness")
     p.add_argument("--hair-scale", type=float, default=1.0, help="multiply hair coordinates (e.g. 0.01 for cm)")
