@@ -6,9 +6,9 @@
 //! polyline: the move across the strand, without the slide along it of the final resampling).
 //!
 //! `cargo run --release -p hairrecon-recon --example dr_on_capture -- CAPTURE INIT_DIR OUT_DIR
-//! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lambda`, `k`, `nw`, `width`,
+//! [key=value ...]` with keys `guides_iters`, `children_iters`, `lr`, `lr_end`, `lambda`, `k`, `nw`, `width`,
 //! `views`, `reparam`, `n`, `guide_opt`, `child_k`, `child_min_guide_fraction`,
-//! `child_parting_reach`, `wo`, `wc`, `wc_rel` (1: R_c against the stage's starting curvature), `keep_curls` (1: the
+//! `child_parting_reach`, `wm`, `wo`, `wc`, `wc_rel` (1: R_c against the stage's starting curvature), `keep_curls` (1: the
 //! options the pipeline uses when the init carries curls, `DrOptions::keeping_curls`, applied after
 //! the other keys, so it overrides `wc`/`wc_rel` and halves `lr`), `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
 //! Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an
@@ -131,6 +131,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "guides_iters" => o.iterations_guides = f as usize,
             "children_iters" => o.iterations_children = f as usize,
             "lr" => o.lr = f,
+            "lr_end" => o.lr_end = f,
             "lambda" => o.lambda = f,
             "k" => o.k_neighbors = f as usize,
             "nw" => o.neighbor_weight = f,
@@ -142,6 +143,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "child_k" => o.child_blend.k = (f as usize).max(1),
             "child_min_guide_fraction" => o.child_blend.min_guide_fraction = f,
             "child_parting_reach" => o.child_blend.parting_reach = f,
+            "wm" => o.weights.mask = f,
             "wo" => o.weights.orientation = f,
             "wc" => o.weights.curvature = f,
             "wl" => o.weights.length = f,

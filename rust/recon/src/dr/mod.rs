@@ -207,6 +207,15 @@ pub struct DrOptions {
     /// Adam learning rate in u, metres per step (with the uniform Adam: the step of a point at
     /// `adam_quantile`, and the longest step of any point).
     pub lr: f32,
+    /// The learning rate at a stage's last step, as a fraction of `lr`: the rate falls linearly
+    /// over each stage from `lr` to `lr · lr_end` (1: constant). With a few random views per step
+    /// the gradient is noisy, and at a constant rate the last steps leave that noise in the strands.
+    /// Measured (session 37, `examples/dr_on_capture CAPTURE INIT OUT [lr_end=0.1]` on the inits of
+    /// whole runs, undirected F1 at 1 · 2 · 3 mm, constant → 0.1): straight 20,000 strands in 16
+    /// views of 384 px (the demo's capture) 45.5 · 79.2 · 90.2 → 47.6 · 80.3 · 90.7 (init 49.3 ·
+    /// 80.2 · 90.1); paper preset (constant: session 35's whole runs) straight 69.9 · 90.4 · 95.9 →
+    /// 70.5 · 90.6 · 96.1, curly (`keep_curls=1`) 19.8 · 73.7 · 92.6 → 20.0 · 73.5 · 92.2.
+    pub lr_end: f32,
     /// λ of `u = (I + λL) x`.
     pub lambda: f32,
     /// k of the kNN Laplacian N (supplement: 10).
@@ -262,6 +271,7 @@ impl Default for DrOptions {
             iterations_guides: 60,
             iterations_children: 20,
             lr: 2e-3,
+            lr_end: 0.1,
             lambda: 10.0,
             k_neighbors: 10,
             neighbor_weight: 0.05,

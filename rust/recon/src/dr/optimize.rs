@@ -290,6 +290,13 @@ struct StageStats {
     solves: usize,
 }
 
+/// The learning rate of step `it` of a stage of `iterations` steps: `lr` falling linearly to
+/// `lr · lr_end` at the last step.
+fn stage_lr(opts: &DrOptions, it: usize, iterations: usize) -> f32 {
+    let t = if iterations > 1 { it as f32 / (iterations - 1) as f32 } else { 0.0 };
+    opts.lr * (1.0 - (1.0 - opts.lr_end) * t)
+}
+
 fn run_stage(
     input: StageInput<'_>,
     targets: &DrTargets,
@@ -346,7 +353,7 @@ fn run_stage(
         } else {
             g_u.copy_from_slice(&g_free);
         }
-        adam.step(&g_u, opts.lr, &mut delta_u);
+        adam.step(&g_u, stage_lr(opts, it, iterations), &mut delta_u);
         if opts.reparam {
             reparam.solve(&delta_u, &mut delta_x);
             stats.cg_iterations += reparam.last_iterations;
@@ -588,6 +595,18 @@ fn resample_even(s: &mut [Vec3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stage_lr_falls_linearly_to_lr_end() {
+        let o = DrOptions { lr: 2e-3, lr_end: 0.1, ..DrOptions::default() };
+        assert_eq!(stage_lr(&o, 0, 11), 2e-3);
+        assert!((stage_lr(&o, 5, 11) - 1.1e-3).abs() < 1e-9);
+        assert!((stage_lr(&o, 10, 11) - 2e-4).abs() < 1e-9);
+        // one step: the full rate; a constant rate with lr_end = 1
+        assert_eq!(stage_lr(&o, 0, 1), 2e-3);
+        let c = DrOptions { lr_end: 1.0, ..o };
+        assert_eq!(stage_lr(&c, 7, 11), 2e-3);
+    }
 
     /// A helix of radius 4 mm about the z axis (a tight curl), sampled unevenly: 3 mm and 1 mm
     /// steps of arc length in turn.
