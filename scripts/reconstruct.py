@@ -55,6 +55,8 @@ def parse_args(argv):
     ap.add_argument("--dr-iters-children", type=int, help="DR steps on every strand after the guides")
     ap.add_argument("--no-hull-trim", action="store_true",
                     help="keep the grown strands whole where a photo sees them outside its hair mask")
+    ap.add_argument("--no-parting", action="store_true",
+                    help="do not look for partings (where the photos see the scalp's skin)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--stop-after", help="stop the pipeline after this stage")
     ap.add_argument("--render", type=Path, help="also render the result with Cycles (CPU) to this PNG")
@@ -153,6 +155,8 @@ def apply_overrides(bpy, a):
         s.dr = False
     if a.no_hull_trim:
         s.hull_trim = False
+    if a.no_parting:
+        s.parting = False
     if a.seed is not None:
         s.seed = a.seed
     if a.stop_after is not None:

@@ -96,6 +96,9 @@ class HairreconSettings(bpy.types.PropertyGroup):
     hull_trim: BoolProperty(name="Cut at Visual Hull", default=True,
                             description="Before optimizing, cut each grown strand where a photo sees it outside its "
                                         "hair mask (and not behind the head); off keeps the strands whole")
+    parting: BoolProperty(name="Find Partings", default=True,
+                          description="Where the photos see the scalp's skin (a parting), the hair beside it "
+                                      "leaves it sideways; off leaves the photos' strand directions there")
     curl: EnumProperty(
         name="Curls",
         items=(

@@ -162,6 +162,8 @@ class Session:
             log("this hairrecon library has no strand optimization (DR); the grown strands are the result")
         if _accepts(getattr(hr, "Reconstruction", None), "hull_trim"):
             options["hull_trim"] = bool(s.hull_trim)
+        if _accepts(getattr(hr, "Reconstruction", None), "parting"):
+            options["parting"] = bool(s.parting)
         if _accepts(getattr(hr, "Reconstruction", None), "curl"):
             options["curl"] = curl_option(s.curl, s.curl_radius_mm, s.curl_period_mm, s.curl_left)
         session = cls(capture_dir, out_dir, keep, options, surface, group)

@@ -73,6 +73,7 @@ class HAIRRECON_PT_advanced(bpy.types.Panel):
         s = context.scene.hairrecon
         layout.prop(s, "seed")
         layout.prop(s, "hull_trim")
+        layout.prop(s, "parting")
         layout.prop(s, "curl")
         if s.curl == "CUSTOM":
             layout.prop(s, "curl_radius_mm")

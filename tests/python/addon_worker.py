@@ -481,6 +481,19 @@ def task_pipeline(p):
             out["hull_switch"][f"session_{flag}"] = sess.options.get("hull_trim")
         finally:
             sess.cleanup()
+    # the partings switch, likewise (see-through masks: the partings are looked for in no view)
+    out["parting_switch"] = {"panel_default": bool(s.parting)}
+    for flag in (True, False):
+        r = hairrecon.reconstruct(p["capture"], str(Path(p["workdir"]) / f"parting_{flag}"), guides=64,
+                                  children=400, stop_after="init", parting=flag)
+        out["parting_switch"][str(flag)] = r["metrics"].get("parting_stats")
+    for flag in (False, True):
+        s.parting = flag
+        sess = session_mod.Session.prepare(bpy.context)
+        try:
+            out["parting_switch"][f"session_{flag}"] = sess.options.get("parting")
+        finally:
+            sess.cleanup()
     # the panel's Curls settings reach the keyword the add-on passes
     out["curl_switch"] = {"panel_default": s.curl}
     for mode, left in (("AUTO", False), ("OFF", False), ("CUSTOM", True)):

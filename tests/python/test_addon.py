@@ -314,6 +314,17 @@ def test_hull_switch_reaches_the_pipeline(pipeline):
     assert h["session_False"] is False and h["session_True"] is True, h
 
 
+def test_parting_switch_reaches_the_pipeline(pipeline):
+    h = pipeline["parting_switch"]
+    assert h["panel_default"] is True
+    # on: the views are searched (none counts, the sparse capture's masks being see-through: no skin)
+    assert h["True"] is not None and h["True"]["views"] == 0 and h["True"]["skin"] == 0, h
+    assert h["True"]["samples"] == 20000, h
+    # off: not searched at all
+    assert h["False"] is None, h
+    assert h["session_False"] is False and h["session_True"] is True, h
+
+
 def test_curl_settings_reach_the_library(pipeline):
     c = pipeline["curl_switch"]
     assert c["panel_default"] == "AUTO"

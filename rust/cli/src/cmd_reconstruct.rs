@@ -57,6 +57,10 @@ pub struct ReconstructArgs {
     /// are cut at the visual hull of the masks before DR, the head hiding what lies behind it).
     #[arg(long)]
     no_hull_trim: bool,
+    /// Do not look for partings (by default, where the views see the scalp's skin, the hair beside it
+    /// leaves it sideways; see partings.ply).
+    #[arg(long)]
+    no_parting: bool,
     /// DR ablation: no guide stage (every child optimized on its own from the start).
     #[arg(long)]
     no_guide_opt: bool,
@@ -179,6 +183,7 @@ fn options(a: &ReconstructArgs) -> Result<ReconstructOptions, Box<dyn std::error
         dr: !a.no_dr,
         dr_keep_curls: !a.dr_plain_curls,
         hull_trim: !a.no_hull_trim,
+        parting: hairrecon_recon::parting::PartingParams { enabled: !a.no_parting, ..Default::default() },
         curl: a.curl.parse().map_err(|e: String| format!("--curl: {e}"))?,
         dr_options: DrOptions {
             iterations_guides: a.dr_iters_guides,

@@ -266,6 +266,14 @@ impl Bvh {
         &self.mesh
     }
 
+    /// The mesh's rim: its edges with one face (after welding), as pairs of end points, in a fixed order.
+    pub fn rim_edges(&self) -> Vec<(Vec3, Vec3)> {
+        let mut e: Vec<(u32, u32)> =
+            self.edge_pn.iter().filter(|(_, &(_, faces))| faces == 1).map(|(&k, _)| k).collect();
+        e.sort_unstable();
+        e.into_iter().map(|(a, b)| (self.mesh.vertices[a as usize], self.mesh.vertices[b as usize])).collect()
+    }
+
     /// The first hit of the ray `origin + t * dir` with `t_min < t < t_max`, if any.
     pub fn ray_cast(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
         let inv = Vec3::ONE / dir;

@@ -147,12 +147,120 @@ fn smoothstep(x: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// Partings: bare skin inside the scalp (found where the cameras see the scalp's skin, see
+/// `hairrecon_recon::parting`), which turns S beside it.
+///
+/// Hair beside a parting leaves it sideways: within `reach` of the skin, the tangential part of S is
+/// turned toward *away from the skin* (the tangent-plane part of `Σ w(|p − q|) (p − q)/|p − q|`
+/// over the skin points q, `w(d) = (1 − d/reach)²`, so along a strip of skin the pushes along it
+/// cancel and those across it remain), by `strength × β` against S's own tangential direction,
+/// and S's tilt from the normal grows toward [`MAX_TILT_DEG`] by `β`, where
+/// `β = smoothstep(1 − d_min/reach) · |Σ w u| / Σ w` with `d_min` the distance to the nearest skin
+/// point (hair at a parting lies flat); the second factor is 1 beside the skin and falls to 0 amid
+/// it, where the pushes cancel and S stays as it was.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Partings {
+    skin: Vec<Vec3>,
+    reach: f32,
+    strength: f32,
+    /// Skin points by grid cell of size `reach`: (cell, start, end) into `order`, sorted by cell.
+    cells: Vec<((i32, i32, i32), u32, u32)>,
+    order: Vec<u32>,
+}
+
+impl Partings {
+    /// Skin points (on the scalp), how far from them S turns (metres, > 0) and how strongly (≥ 0).
+    pub fn new(skin: Vec<Vec3>, reach: f32, strength: f32) -> Self {
+        let reach = reach.max(1e-6);
+        let cell = |p: Vec3| {
+            let c = (p / reach).floor();
+            (c.x as i32, c.y as i32, c.z as i32)
+        };
+        let mut order: Vec<u32> = (0..skin.len() as u32).collect();
+        order.sort_by_key(|&i| (cell(skin[i as usize]), i));
+        let mut cells = Vec::new();
+        let mut s = 0;
+        while s < order.len() {
+            let key = cell(skin[order[s] as usize]);
+            let mut e = s + 1;
+            while e < order.len() && cell(skin[order[e] as usize]) == key {
+                e += 1;
+            }
+            cells.push((key, s as u32, e as u32));
+            s = e;
+        }
+        Self { skin, reach, strength: strength.max(0.0), cells, order }
+    }
+
+    /// The skin points.
+    pub fn skin(&self) -> &[Vec3] {
+        &self.skin
+    }
+
+    pub fn reach(&self) -> f32 {
+        self.reach
+    }
+
+    /// The skin points within `reach` of `p`.
+    fn near(&self, p: Vec3) -> impl Iterator<Item = Vec3> + '_ {
+        let c = (p / self.reach).floor();
+        let (cx, cy, cz) = (c.x as i32, c.y as i32, c.z as i32);
+        let r2 = self.reach * self.reach;
+        (-1..=1)
+            .flat_map(move |dx| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dz| (cx + dx, cy + dy, cz + dz))))
+            .filter_map(move |key| {
+                self.cells.binary_search_by(|c| c.0.cmp(&key)).ok().map(|k| (self.cells[k].1, self.cells[k].2))
+            })
+            .flat_map(move |(s, e)| self.order[s as usize..e as usize].iter().map(move |&i| self.skin[i as usize]))
+            .filter(move |q| q.distance_squared(p) < r2)
+    }
+
+    /// The distance from `p` to the nearest skin point, if one lies within `reach`.
+    pub fn distance(&self, p: Vec3) -> Option<f32> {
+        self.near(p).map(|q| q.distance(p)).min_by(f32::total_cmp)
+    }
+
+    /// S at the scalp point `p` (unit outward normal `n`), turned away from the skin (see the type).
+    pub fn turn(&self, p: Vec3, n: Vec3, s: Vec3) -> Vec3 {
+        let mut push = Vec3::ZERO;
+        let mut total = 0.0;
+        let mut d_min = f32::INFINITY;
+        for q in self.near(p) {
+            let d = p - q;
+            let r = d.length();
+            d_min = d_min.min(r);
+            if r > 1e-6 {
+                let w = 1.0 - r / self.reach;
+                push += d * (w * w / r);
+                total += w * w;
+            }
+        }
+        let tangential = |v: Vec3| v - n * n.dot(v);
+        let push = tangential(push);
+        let away = push.normalize_or_zero();
+        if away == Vec3::ZERO {
+            return s;
+        }
+        // 1 with all the skin on one side, 0 amid it.
+        let one_sided = (push.length() / total).min(1.0);
+        let beta = smoothstep(1.0 - d_min / self.reach) * one_sided;
+        let t_s = tangential(s).normalize_or(away);
+        let t = (t_s + away * (self.strength * beta)).normalize_or(away);
+        let theta = s.dot(n).clamp(-1.0, 1.0).acos();
+        let max_tilt = MAX_TILT_DEG.to_radians();
+        let theta = theta + (max_tilt - theta).max(0.0) * beta;
+        (n * theta.cos() + t * theta.sin()).normalize_or(s)
+    }
+}
+
 /// A scalp mesh made ready for queries: outward normals, the growth field, area sampling and a BVH.
 #[derive(Debug, Clone)]
 pub struct Scalp {
     bvh: Bvh,
     normals: Vec<Vec3>,
     field: GrowthField,
+    /// Partings found on it, if any: they turn S beside them ([`Partings`]).
+    partings: Option<Partings>,
     /// Cumulative triangle areas (f64 for 10^5+ triangles), last = total area.
     cdf: Vec<f64>,
 }
@@ -192,7 +300,7 @@ impl Scalp {
             normals.iter_mut().for_each(|n| *n = -*n);
         }
         let field = GrowthField::from_mesh(&mesh);
-        Ok(Self { bvh: Bvh::new(mesh), normals, field, cdf })
+        Ok(Self { bvh: Bvh::new(mesh), normals, field, partings: None, cdf })
     }
 
     pub fn mesh(&self) -> &TriMesh {
@@ -211,6 +319,24 @@ impl Scalp {
     /// Replaces the growth field (for example to move the whorl).
     pub fn set_field(&mut self, field: GrowthField) {
         self.field = field;
+    }
+
+    /// Sets (or with `None` clears) the partings that turn S beside them.
+    pub fn set_partings(&mut self, partings: Option<Partings>) {
+        self.partings = partings.filter(|p| !p.skin.is_empty());
+    }
+
+    pub fn partings(&self) -> Option<&Partings> {
+        self.partings.as_ref()
+    }
+
+    /// S at the scalp point `p` with unit outward normal `n`: the growth field, turned beside partings.
+    pub fn direction(&self, p: Vec3, n: Vec3) -> Vec3 {
+        let s = self.field.direction(p, n);
+        match &self.partings {
+            Some(parts) => parts.turn(p, n, s),
+            None => s,
+        }
     }
 
     /// Total area, m².
@@ -235,7 +361,7 @@ impl Scalp {
             normal = if f.dot(s) < 0.0 { -f } else { f };
         }
         let uv = mesh.uvs.as_ref().map(|uv| self.bvh.interpolate(uv, triangle, bary));
-        Root { position, normal, direction: self.field.direction(position, normal), triangle, bary, uv }
+        Root { position, normal, direction: self.direction(position, normal), triangle, bary, uv }
     }
 
     /// The root at the scalp point closest to `p` (e.g. to read S near an arbitrary point).
@@ -512,6 +638,45 @@ mod tests {
             }
         }
         TriMesh::new(v, t, Some(nrm), None).unwrap()
+    }
+
+    #[test]
+    fn a_parting_turns_s_away_from_it_on_both_sides_and_nowhere_else() {
+        let mut scalp = Scalp::new(dome(0.08, -0.02, 48, 96)).unwrap();
+        // A strip of skin along y over the top (x = 0, y from -4 to +4 cm), one point per mm.
+        let skin: Vec<Vec3> = (-40..=40)
+            .map(|k| {
+                let y = k as f32 * 0.001;
+                Vec3::new(0.0, y, (0.08f32 * 0.08 - y * y).sqrt())
+            })
+            .collect();
+        let at = |scalp: &Scalp, x: f32, y: f32| {
+            let p = Vec3::new(x, y, (0.08f32 * 0.08 - x * x - y * y).sqrt());
+            let n = p.normalize();
+            (scalp.direction(p, n), n)
+        };
+        let before: Vec<(Vec3, Vec3)> = [0.008, -0.008, 0.0, 0.06].iter().map(|&x| at(&scalp, x, -0.01)).collect();
+        scalp.set_partings(Some(Partings::new(skin, 0.03, 2.0)));
+        let after: Vec<(Vec3, Vec3)> = [0.008, -0.008, 0.0, 0.06].iter().map(|&x| at(&scalp, x, -0.01)).collect();
+        // Without the parting S leaves the front of the top forward (−y), hardly sideways.
+        assert!(before[0].0.x.abs() < 0.2 && before[0].0.y < -0.3, "{:?}", before[0].0);
+        // Beside it, S leaves sideways, away from it, and lies flatter; still out of the skin.
+        for (k, sign) in [(0usize, 1.0f32), (1, -1.0)] {
+            let (s, n) = after[k];
+            assert!(s.x * sign > 0.5, "side {sign}: {s:?}");
+            assert!(s.dot(n) < before[k].0.dot(n) && s.dot(n) > 0.45, "tilt {s:?} before {:?}", before[k].0);
+            assert!((s.length() - 1.0).abs() < 1e-5);
+        }
+        // On its middle line the pushes cancel: S as it was; beyond its reach, S as it was.
+        assert!(after[2].0.distance(before[2].0) < 0.05, "{:?} vs {:?}", after[2].0, before[2].0);
+        assert_eq!(after[3].0, before[3].0);
+        // Roots read S through the same turn.
+        let cp = scalp.bvh().closest_point(Vec3::new(0.008, -0.01, 0.079), 0.01).unwrap();
+        assert!(scalp.root_at(cp.triangle, cp.bary).direction.x > 0.5);
+        assert!(scalp.partings().unwrap().distance(Vec3::new(0.008, -0.01, 0.0795)).unwrap() < 0.0085);
+        // No skin, no partings.
+        scalp.set_partings(Some(Partings::new(Vec::new(), 0.03, 2.0)));
+        assert!(scalp.partings().is_none());
     }
 
     #[test]

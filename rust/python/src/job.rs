@@ -35,6 +35,7 @@ struct Args<'a> {
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
     hull_trim: bool,
+    parting: bool,
     curl: &'a str,
 }
 
@@ -63,6 +64,7 @@ fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
         dr: a.dr,
         dr_options,
         hull_trim: a.hull_trim,
+        parting: hairrecon_recon::parting::PartingParams { enabled: a.parting, ..Default::default() },
         curl: a.curl.parse().map_err(|e: String| HairreconError::new_err(format!("curl: {e}")))?,
         ..Default::default()
     })
@@ -113,7 +115,8 @@ fn run_error_to_py(e: RunError) -> PyErr {
 /// optimization by differentiable rendering); `dr_iters_guides` / `dr_iters_children` set the DR
 /// steps (None: the library's defaults); `hull_trim=False` keeps the initial strands' ends that a
 /// view sees where its mask has no hair (by default they are cut at the visual hull before DR);
-/// `curl` is `"auto"` (the images decide), `"off"` or `"RADIUS_MM,PERIOD_MM,HAND"` (`--curl`).
+/// `parting=False` does not look for partings (by default, where the views see the scalp's skin,
+/// the hair beside it leaves it sideways); `curl` is `"auto"` (the images decide), `"off"` or `"RADIUS_MM,PERIOD_MM,HAND"` (`--curl`).
 ///
 /// ```python
 /// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000, dr=True)
@@ -137,7 +140,7 @@ pub struct Reconstruction {
 #[pymethods]
 impl Reconstruction {
     #[new]
-    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, curl="auto"))]
+    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, parting=true, curl="auto"))]
     fn new(
         capture_dir: PathBuf,
         out_dir: PathBuf,
@@ -151,6 +154,7 @@ impl Reconstruction {
         dr_iters_guides: Option<usize>,
         dr_iters_children: Option<usize>,
         hull_trim: bool,
+        parting: bool,
         curl: &str,
     ) -> PyResult<Self> {
         let args = Args {
@@ -164,6 +168,7 @@ impl Reconstruction {
             dr_iters_guides,
             dr_iters_children,
             hull_trim,
+            parting,
             curl,
         };
         Ok(Self {
@@ -240,7 +245,7 @@ impl Reconstruction {
 /// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
 /// while Rust works). Returns the same dict as `Reconstruction.result()`.
 #[pyfunction]
-#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, curl="auto"))]
+#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, parting=true, curl="auto"))]
 fn reconstruct<'py>(
     py: Python<'py>,
     capture_dir: PathBuf,
@@ -255,6 +260,7 @@ fn reconstruct<'py>(
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
     hull_trim: bool,
+    parting: bool,
     curl: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(Args {
@@ -268,6 +274,7 @@ fn reconstruct<'py>(
         dr_iters_guides,
         dr_iters_children,
         hull_trim,
+        parting,
         curl,
     })?;
     let progress = SharedProgress::new();

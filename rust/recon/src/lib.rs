@@ -7,6 +7,7 @@
 //! - [`points3d`]: oriented 3D points by line-based MVS on the raw mesh.
 //! - [`direction`]: global direction of the points (MST from the scalp) or the gravity heuristic.
 //! - [`roots`]: the scalp with S(p_s), and roots on it.
+//! - [`parting`]: partings, where the views see the scalp's skin; S turns away from them.
 //! - [`laplace`]: the interior flow of the hair volume by Laplace's equation.
 //! - [`grow`]: guide strands grown through the flow, children interpolated.
 //! - [`curl`]: curly hair: ringlet axes from the directed points, helices swept about grown strands.
@@ -22,6 +23,7 @@ pub mod hull;
 pub mod laplace;
 pub mod metrics;
 pub mod orient2d;
+pub mod parting;
 pub mod pipeline;
 pub mod points3d;
 pub mod progress;

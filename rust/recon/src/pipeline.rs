@@ -7,14 +7,14 @@
 //! [`ReconstructOutput`] with the paths of the strands, the time of each stage and, when the
 //! capture has ground truth, the metrics of each stage (also written to `metrics.json`).
 //!
-//! Output folder: `orient2d/<view>.exr` (+ `.png` pictures), `points3d.ply`,
-//! `points_directed.ply`, `roots.ply`, `flow.bin`, `guides.hair`, `strands.hair`, `metrics.json`
+//! Output folder: `orient2d/<view>.exr` (+ `.png` pictures), `points3d.ply`, `partings.ply`
+//! (the skin the views see on the scalp, [`crate::parting`], when any), `points_directed.ply`, `roots.ply`, `flow.bin`, `guides.hair`, `strands.hair`, `metrics.json`
 //! (with curls, [`crate::curl`], also `points_axes.ply`: the points moved onto their ringlets' axes, with
 //! the axes' directions, that the flow grew from);
 //! when DR runs also `init_guides.hair`, `init_strands.hair` (the strands before DR), `loss.csv`
 //! and `loss.png`. `strands.hair` (children) and `guides.hair` are always the run's final answer:
 //! after DR when it ran, else the initial strands. Each stage follows the paper named in its
-//! module ([`crate::orient2d`], [`crate::points3d`], [`crate::direction`], [`crate::roots`],
+//! module ([`crate::orient2d`], [`crate::points3d`], [`crate::parting`], [`crate::direction`], [`crate::roots`],
 //! [`crate::laplace`], [`crate::grow`], [`crate::dr`]). The DR stage renders against the capture's
 //! masks and the orientation maps of stage 1, with the head mesh (else the scalp) as occluder and
 //! as the body the strands must stay out of.
@@ -47,6 +47,7 @@ use crate::metrics::{gt_axes, score_axes, score_directions, score_points, PointI
 use crate::orient2d::{
     load_mask, orientation_errors, summarize_errors, GaborBank, GaborParams, GrayImage, Orient2dError, OrientationMap,
 };
+use crate::parting::{clear_points, find_partings, PartingError, PartingParams};
 use crate::points3d::{estimate, LineMvsParams, MvsView, OrientedPoints, PointsError};
 use crate::progress::{Cancelled, Progress};
 use crate::roots::{sample_roots, Scalp, ScalpError};
@@ -76,6 +77,8 @@ pub enum ReconError {
     Dr(DrError),
     #[error("the visual hull: {0}")]
     Hull(HullError),
+    #[error("the partings (--no-parting skips them): {0}")]
+    Parting(PartingError),
     #[error("view {view} of the capture has no ground-truth orientation map (gt/orientation)")]
     NoGtOrientation { view: String },
     #[error(
@@ -92,6 +95,15 @@ impl From<HullError> for ReconError {
         match e {
             HullError::Cancelled(c) => ReconError::Cancelled(c),
             e => ReconError::Hull(e),
+        }
+    }
+}
+
+impl From<PartingError> for ReconError {
+    fn from(e: PartingError) -> Self {
+        match e {
+            PartingError::Cancelled(c) => ReconError::Cancelled(c),
+            e => ReconError::Parting(e),
         }
     }
 }
@@ -175,6 +187,9 @@ pub struct ReconstructOptions {
     /// (`--no-hull-trim`).
     pub hull_trim: bool,
     pub hull: HullParams,
+    /// Partings: where the views see the scalp's skin, S turns away from it ([`crate::parting`];
+    /// `enabled = false`: `--no-parting`).
+    pub parting: PartingParams,
     /// Curls ([`crate::curl`]): `Auto` lets the images decide.
     pub curl: CurlMode,
     pub curl_options: CurlOptions,
@@ -202,6 +217,7 @@ impl Default for ReconstructOptions {
             dr_keep_curls: true,
             hull_trim: true,
             hull: HullParams::default(),
+            parting: PartingParams::default(),
             curl: CurlMode::Auto,
             curl_options: CurlOptions::default(),
         }
@@ -430,11 +446,45 @@ pub fn reconstruct(
 
     // Stage 3: global direction.
     let t = Instant::now();
-    progress.update("direction", 0.0, "");
+    progress.update("partings", 0.0, "");
     let scalp_path = capture.scalp_mesh.as_ref().ok_or_else(|| ReconError::NoScalp { dir: capture.dir.clone() })?;
-    let scalp =
+    let mut scalp =
         Scalp::new(read_mesh(scalp_path)?).map_err(|source| ReconError::Scalp { path: scalp_path.clone(), source })?;
     progress.check()?;
+    // The head (else the scalp): what the partings' views and the flow see around, and DR keeps the
+    // strands out of.
+    let inner = match &capture.head_mesh {
+        Some(h) => Bvh::new(read_mesh(h)?),
+        None => scalp.bvh().clone(),
+    };
+    // Partings: S turns away from the skin the views see on the scalp (crate::parting).
+    let partings_path = out_dir.join("partings.ply");
+    let found = if opts.parting.enabled {
+        let (p, stats) = find_partings(capture, &scalp, &inner, &opts.parting, "partings", progress)?;
+        metrics.insert("parting_stats".into(), serde_json::to_value(stats).unwrap_or_default());
+        p
+    } else {
+        None
+    };
+    match &found {
+        Some(p) => OrientedPoints {
+            positions: p.skin().to_vec(),
+            directions: p.skin().iter().map(|&q| scalp.closest_root(q).normal).collect(),
+            confidence: vec![1.0; p.skin().len()],
+        }
+        .save_ply(&partings_path)?,
+        None => match std::fs::remove_file(&partings_path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(ReconError::Write { path: partings_path, source: e });
+            }
+            _ => {}
+        },
+    }
+    scalp.set_partings(found);
+    times.push(("partings".into(), t.elapsed().as_secs_f64()));
+    note_peak_memory(&mut metrics, "partings");
+    let t = Instant::now();
+    progress.update("direction", 0.0, "");
     let directed = if opts.global_opt {
         let (d, stats) = global_directions(&points, &scalp, &opts.direction);
         metrics.insert("direction_stats".into(), serde_json::to_value(stats).unwrap_or_default());
@@ -468,14 +518,18 @@ pub fn reconstruct(
     let guide_roots = sample_roots(&scalp, opts.guides.max(1), opts.seed).map_err(scalp_err)?;
     let child_roots = sample_roots(&scalp, opts.children.max(1), opts.seed.wrapping_add(1)).map_err(scalp_err)?;
     guide_roots.to_points().save_ply(&out_dir.join("roots.ply"))?;
-    // The head (else the scalp): what the flow grows around and DR keeps the strands out of.
-    let inner = match &capture.head_mesh {
-        Some(h) => Bvh::new(read_mesh(h)?),
-        None => scalp.bvh().clone(),
-    };
     // Growth from some directed points: the flow (saved as flow.bin by the caller), the guides
     // and the children.
     let grow_from = |pts: &OrientedPoints, metrics: &mut Metrics| -> Result<Grown, ReconError> {
+        // Beside partings the points above the skin go: the partings decide the hair there.
+        let cleared = scalp.partings().map(|p| clear_points(pts, &scalp, p, opts.parting.clear_height));
+        let pts = match &cleared {
+            Some((c, n)) => {
+                metrics.insert("parting_points_cleared".into(), json!(n));
+                c
+            }
+            None => pts,
+        };
         let (flow, stats) = solve_flow(&raw, &inner, &scalp, pts, &opts.laplace, progress)?;
         metrics.insert("laplace_stats".into(), serde_json::to_value(stats).unwrap_or_default());
         let trace =
@@ -558,7 +612,8 @@ pub fn reconstruct(
     // outside the masks still matching thin hair there (examples/hull_check on examples/dr_on_capture's
     // output, session 15).
     let hull = if opts.hull_trim {
-        let hull = VisualHull::from_capture(capture, Some(&inner), opts.hull, "init", progress)?;
+        let hull = VisualHull::from_capture(capture, Some(&inner), opts.hull, "init", progress)?
+            .map(|h| h.with_scalp(Some(scalp.bvh().clone())));
         metrics.insert("hull_views".into(), json!(hull.as_ref().map_or(0, |h| h.num_views())));
         hull
     } else {
