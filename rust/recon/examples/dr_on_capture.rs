@@ -11,7 +11,8 @@
 //! `child_parting_reach`, `wm`, `wo`, `wc`, `wc_rel` (1: R_c against the stage's starting curvature), `keep_curls` (1: the
 //! options the pipeline uses when the init carries curls, `DrOptions::keeping_curls`, applied after
 //! the other keys, so it overrides `wc`/`wc_rel` and halves `lr`), `wl`, `seed`, `cg_tol`, `equalize`, `uniform` (0: per-coordinate
-//! Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), and `upscale` (an
+//! Adam), `aq` (the uniform Adam's quantile), `eval` (0: no metric table), `quiet` (1: the orientation
+//! loss quiet around the partings of `INIT_DIR/partings.ply`, as the pipeline does), and `upscale` (an
 //! integer: every view's camera and targets enlarged that many times, nearest neighbour, to time a step at a
 //! larger image size, e.g. 2 for the paper preset's 341×512 from the test preset's 171×256).
 
@@ -124,6 +125,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut upscale = 1usize;
     let mut eval = true;
     let mut keep_curls = false;
+    let mut quiet = false;
     for kv in &args[3..] {
         let (k, v) = kv.split_once('=').ok_or("arguments are key=value")?;
         let f: f32 = v.parse()?;
@@ -149,6 +151,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "wl" => o.weights.length = f,
             "wc_rel" => o.curvature_relative = f > 0.5,
             "keep_curls" => keep_curls = f > 0.5,
+            "quiet" => quiet = f > 0.5,
             "seed" => o.seed = f as u64,
             "project_every" => o.project_every = f as usize,
             "diag" => diag = f > 0.5,
@@ -177,6 +180,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut targets = DrTargets::from_capture(&capture, &maps, head.as_ref(), &Print)?;
     if upscale > 1 {
         targets = upscaled(&targets, upscale, head.as_ref())?;
+    }
+    if quiet {
+        let skin = hairrecon_recon::pipeline::load_points(&init, "partings.ply")?.positions;
+        let p = hairrecon_recon::parting::PartingParams::default();
+        let n = targets.quiet_partings(&hairrecon_core::scalp::Partings::new(skin, p.reach, p.strength));
+        println!("orientation quiet around the partings: {n} pixels");
     }
     println!("targets: {} views in {:.2} s", targets.views.len(), t.elapsed().as_secs_f64());
     println!(

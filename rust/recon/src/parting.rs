@@ -58,6 +58,9 @@ pub struct PartingParams {
     /// Directed points within `reach` of a skin point and closer than this to the scalp are
     /// dropped before the flow and the growth, metres.
     pub clear_height: f32,
+    /// DR's orientation loss says nothing where the views see the head within `reach` of the skin
+    /// ([`crate::dr::DrTargets::quiet_partings`]).
+    pub quiet_orientation: bool,
 }
 
 impl Default for PartingParams {
@@ -75,6 +78,7 @@ impl Default for PartingParams {
             reach: 0.03,
             strength: 2.0,
             clear_height: 0.015,
+            quiet_orientation: true,
         }
     }
 }

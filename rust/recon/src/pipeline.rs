@@ -665,10 +665,15 @@ pub fn reconstruct(
     // Stage 6: DR. Nothing is written until it has finished.
     let t = Instant::now();
     progress.update("dr", 0.0, "targets");
-    let targets = match dr_targets {
+    let mut targets = match dr_targets {
         Some(t) => t,
         None => DrTargets::from_capture(capture, &maps, Some(&inner), progress)?,
     };
+    if let Some(p) = scalp.partings() {
+        if opts.parting.quiet_orientation {
+            metrics.insert("parting_pixels_quieted".into(), json!(targets.quiet_partings(p)));
+        }
+    }
     let t_targets = t.elapsed().as_secs_f64();
     let t_opt = Instant::now();
     // The guide stage's child map blends as many guides as growing did.

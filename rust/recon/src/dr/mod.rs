@@ -197,6 +197,41 @@ impl DrTargets {
     }
 }
 
+impl DrTargets {
+    /// Zeroes the orientation's confidence where a view sees the head within the partings' reach of
+    /// their skin ([`crate::parting`]): the Gabor maps there carry no strand texture and run along
+    /// the parting (docs/reconstruction.md, "The front of the crown"), so the orientation loss would
+    /// turn the strands that leave the parting sideways back along it; the silhouette still holds
+    /// them. Views without the head's depth are left as they are. Returns the pixels quieted.
+    pub fn quiet_partings(&mut self, partings: &hairrecon_core::scalp::Partings) -> usize {
+        self.views
+            .iter_mut()
+            .map(|v| {
+                let Some(depth) = &v.head_depth else { return 0 };
+                let w = v.camera.width() as usize;
+                let camera = v.camera;
+                v.orientation
+                    .par_iter_mut()
+                    .zip(depth.par_iter())
+                    .enumerate()
+                    .map(|(i, (o, &d))| {
+                        if !d.is_finite() || o[2] == 0.0 {
+                            return 0;
+                        }
+                        let p = camera.back_project(Vec2::new((i % w) as f32, (i / w) as f32), d);
+                        if partings.distance(p).is_some() {
+                            o[2] = 0.0;
+                            1
+                        } else {
+                            0
+                        }
+                    })
+                    .sum::<usize>()
+            })
+            .sum()
+    }
+}
+
 /// Options of [`optimize()`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DrOptions {
@@ -379,5 +414,34 @@ pub(crate) fn push_out_of_head(head: &Bvh, p: Vec3, clearance: f32) -> Vec3 {
         p
     } else {
         cp.point + n.normalize_or_zero() * clearance
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hairrecon_core::scalp::Partings;
+
+    #[test]
+    fn the_orientation_is_quiet_where_the_view_sees_the_head_by_a_parting_and_nowhere_else() {
+        // A 40×40 view from z = 1 m down onto the head's plane z = 0 (a pixel is 2.5 cm there).
+        let camera =
+            Camera::look_at(Vec3::new(0.0, 0.0, 1.0), Vec3::ZERO, Vec3::Y, 2.0 * 0.5f32.atan(), 40, 40).unwrap();
+        let n = 40 * 40;
+        let mut depth = vec![1.0f32; n];
+        // No head in the first row: nothing to quiet there.
+        depth[..40].iter_mut().for_each(|d| *d = f32::INFINITY);
+        let view = DrView::new(0, camera, vec![1.0; n], vec![[1.0, 0.0, 0.8]; n], Some(depth)).unwrap();
+        let mut targets = DrTargets { views: vec![view.clone(), DrView { head_depth: None, ..view }] };
+        // Skin at the head point seen by pixel (20, 20), reach 3 cm: that pixel and its four
+        // neighbours (2.5 cm away) see the head within reach, the diagonal ones (3.5 cm) do not.
+        let skin = camera.back_project(Vec2::new(20.0, 20.0), 1.0);
+        let quiet = targets.quiet_partings(&Partings::new(vec![skin], 0.03, 2.0));
+        let zero: Vec<usize> = (0..n).filter(|&i| targets.views[0].orientation[i][2] == 0.0).collect();
+        assert_eq!(quiet, 5);
+        assert_eq!(zero, vec![19 * 40 + 20, 20 * 40 + 19, 20 * 40 + 20, 20 * 40 + 21, 21 * 40 + 20]);
+        // The orientation itself is kept; a view without the head's depth is left alone.
+        assert_eq!(targets.views[0].orientation[20 * 40 + 20][..2], [1.0, 0.0]);
+        assert!(targets.views[1].orientation.iter().all(|o| o[2] == 0.8));
     }
 }
