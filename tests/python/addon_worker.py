@@ -465,35 +465,30 @@ def task_pipeline(p):
         if err:
             break
     out["runs"] = runs
+    session_mod = import_module(pkg.__name__ + ".session")
+
+    def switch(name, keep):
+        """The panel's default of the switch `name`, what the module's metrics show with the keyword on
+        and off (`keep` picks them), and the keyword the add-on passes for each panel setting."""
+        report = {"panel_default": bool(getattr(s, name))}
+        for flag in (True, False):
+            r = hairrecon.reconstruct(p["capture"], str(Path(p["workdir"]) / f"{name}_{flag}"), guides=64,
+                                      children=400, stop_after="init", **{name: flag})
+            report[str(flag)] = keep(r["metrics"])
+        for flag in (False, True):
+            setattr(s, name, flag)
+            sess = session_mod.Session.prepare(bpy.context)
+            try:
+                report[f"session_{flag}"] = sess.options.get(name)
+            finally:
+                sess.cleanup()
+        return report
+
     # the visual-hull switch, from the panel's setting to the module's keyword (the test capture's
     # masks are see-through, so the hull is built and skipped: hull_views 0; off: no hull at all)
-    out["hull_switch"] = {"panel_default": bool(s.hull_trim)}
-    for flag in (True, False):
-        r = hairrecon.reconstruct(p["capture"], str(Path(p["workdir"]) / f"hull_{flag}"), guides=64, children=400,
-                                  stop_after="init", hull_trim=flag)
-        out["hull_switch"][str(flag)] = {k: v for k, v in r["metrics"].items() if k.startswith("hull")}
-    # and the panel's setting reaches the keyword the add-on passes
-    session_mod = import_module(pkg.__name__ + ".session")
-    for flag in (False, True):
-        s.hull_trim = flag
-        sess = session_mod.Session.prepare(bpy.context)
-        try:
-            out["hull_switch"][f"session_{flag}"] = sess.options.get("hull_trim")
-        finally:
-            sess.cleanup()
+    out["hull_switch"] = switch("hull_trim", lambda m: {k: v for k, v in m.items() if k.startswith("hull")})
     # the partings switch, likewise (see-through masks: the partings are looked for in no view)
-    out["parting_switch"] = {"panel_default": bool(s.parting)}
-    for flag in (True, False):
-        r = hairrecon.reconstruct(p["capture"], str(Path(p["workdir"]) / f"parting_{flag}"), guides=64,
-                                  children=400, stop_after="init", parting=flag)
-        out["parting_switch"][str(flag)] = r["metrics"].get("parting_stats")
-    for flag in (False, True):
-        s.parting = flag
-        sess = session_mod.Session.prepare(bpy.context)
-        try:
-            out["parting_switch"][f"session_{flag}"] = sess.options.get("parting")
-        finally:
-            sess.cleanup()
+    out["parting_switch"] = switch("parting", lambda m: m.get("parting_stats"))
     # the panel's Curls settings reach the keyword the add-on passes
     out["curl_switch"] = {"panel_default": s.curl}
     for mode, left in (("AUTO", False), ("OFF", False), ("CUSTOM", True)):

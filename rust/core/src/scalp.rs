@@ -163,8 +163,8 @@ pub struct Partings {
     skin: Vec<Vec3>,
     reach: f32,
     strength: f32,
-    /// Skin points by grid cell of size `reach`: (cell, start, end) into `order`, sorted by cell.
-    cells: Vec<((i32, i32, i32), u32, u32)>,
+    /// Skin points by grid cell of size `reach` ([`sort_by_cell`]).
+    cells: Vec<(Cell, usize, usize)>,
     order: Vec<u32>,
 }
 
@@ -172,23 +172,7 @@ impl Partings {
     /// Skin points (on the scalp), how far from them S turns (metres, > 0) and how strongly (≥ 0).
     pub fn new(skin: Vec<Vec3>, reach: f32, strength: f32) -> Self {
         let reach = reach.max(1e-6);
-        let cell = |p: Vec3| {
-            let c = (p / reach).floor();
-            (c.x as i32, c.y as i32, c.z as i32)
-        };
-        let mut order: Vec<u32> = (0..skin.len() as u32).collect();
-        order.sort_by_key(|&i| (cell(skin[i as usize]), i));
-        let mut cells = Vec::new();
-        let mut s = 0;
-        while s < order.len() {
-            let key = cell(skin[order[s] as usize]);
-            let mut e = s + 1;
-            while e < order.len() && cell(skin[order[e] as usize]) == key {
-                e += 1;
-            }
-            cells.push((key, s as u32, e as u32));
-            s = e;
-        }
+        let (order, cells) = sort_by_cell(&skin, reach);
         Self { skin, reach, strength: strength.max(0.0), cells, order }
     }
 
@@ -203,15 +187,14 @@ impl Partings {
 
     /// The skin points within `reach` of `p`.
     fn near(&self, p: Vec3) -> impl Iterator<Item = Vec3> + '_ {
-        let c = (p / self.reach).floor();
-        let (cx, cy, cz) = (c.x as i32, c.y as i32, c.z as i32);
+        let (cx, cy, cz) = grid_cell(p, self.reach);
         let r2 = self.reach * self.reach;
         (-1..=1)
             .flat_map(move |dx| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dz| (cx + dx, cy + dy, cz + dz))))
             .filter_map(move |key| {
                 self.cells.binary_search_by(|c| c.0.cmp(&key)).ok().map(|k| (self.cells[k].1, self.cells[k].2))
             })
-            .flat_map(move |(s, e)| self.order[s as usize..e as usize].iter().map(move |&i| self.skin[i as usize]))
+            .flat_map(move |(s, e)| self.order[s..e].iter().map(move |&i| self.skin[i as usize]))
             .filter(move |q| q.distance_squared(p) < r2)
     }
 
@@ -459,25 +442,40 @@ impl Neighbours {
     }
 }
 
-/// All pairs closer than `r`, by a uniform grid of cell size `r` (points sorted by cell).
-fn neighbour_lists(points: &[Vec3], r: f32) -> Neighbours {
-    let cell = |p: Vec3| {
-        let c = (p / r).floor();
-        (c.x as i32, c.y as i32, c.z as i32)
-    };
+/// A cell of a uniform grid.
+type Cell = (i32, i32, i32);
+
+/// The cell of the grid of cell size `size` that holds `p`.
+fn grid_cell(p: Vec3, size: f32) -> Cell {
+    let c = (p / size).floor();
+    (c.x as i32, c.y as i32, c.z as i32)
+}
+
+/// `points` sorted by their cell of a grid of cell size `size`: their indices in that order, and
+/// each occupied cell with the range of the order it holds, sorted by cell.
+fn sort_by_cell(points: &[Vec3], size: f32) -> (Vec<u32>, Vec<(Cell, usize, usize)>) {
     let mut order: Vec<u32> = (0..points.len() as u32).collect();
-    order.sort_by_key(|&i| (cell(points[i as usize]), i));
-    let mut cells: std::collections::HashMap<(i32, i32, i32), (usize, usize)> = std::collections::HashMap::new();
+    order.sort_by_key(|&i| (grid_cell(points[i as usize], size), i));
+    let mut cells = Vec::new();
     let mut s = 0;
     while s < order.len() {
-        let key = cell(points[order[s] as usize]);
+        let key = grid_cell(points[order[s] as usize], size);
         let mut e = s + 1;
-        while e < order.len() && cell(points[order[e] as usize]) == key {
+        while e < order.len() && grid_cell(points[order[e] as usize], size) == key {
             e += 1;
         }
-        cells.insert(key, (s, e));
+        cells.push((key, s, e));
         s = e;
     }
+    (order, cells)
+}
+
+/// All pairs closer than `r`, by a uniform grid of cell size `r` (points sorted by cell).
+fn neighbour_lists(points: &[Vec3], r: f32) -> Neighbours {
+    let cell = |p: Vec3| grid_cell(p, r);
+    let (order, runs) = sort_by_cell(points, r);
+    let cells: std::collections::HashMap<Cell, (usize, usize)> =
+        runs.into_iter().map(|(k, s, e)| (k, (s, e))).collect();
     let r2 = r * r;
     let mut start = Vec::with_capacity(points.len() + 1);
     let mut items = Vec::new();
