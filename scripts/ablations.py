@@ -8,7 +8,9 @@ Rows (Dr.Hair's supplement, Table 3; ``docs/method.md``):
   full run's init, with one switch off: ``dr_on_capture CAPTURE INIT OUT/ROW eval=0 KEY=0`` (the example
   binary of ``hairrecon-recon``; the init is deterministic, so these rows start from the same strands as
   ``full``), scored with ``hairrecon eval --json``; with ``keep_curls=1`` too when the full run's DR kept
-  curls (``dr_keeps_curls`` in its ``metrics.json``), so the row differs from ``full`` by its switch only;
+  curls (``dr_keeps_curls`` in its ``metrics.json``) and ``quiet=1`` (its ``partings.ply`` linked into the
+  init) when it quieted the orientation around the partings (``parting_pixels_quieted``), so the row
+  differs from ``full`` by its switch only;
 - ``no_strand_init``, ``no_global_opt`` (w/o strand init., w/o global opt.): whole runs with
   ``--no-strand-init`` / ``--no-global-opt`` (they change the init).
 
@@ -57,10 +59,12 @@ class AblationError(RuntimeError):
     pass
 
 
-def dr_row_keys(name: str, keep_curls: bool) -> list:
-    """``dr_on_capture``'s keys for a DR-only row: its switch off, and the full run's curl options
-    when its DR kept curls (the row then differs from ``full`` by the switch only)."""
-    return ["eval=0", f"{DR_KEYS[name]}=0"] + (["keep_curls=1"] if keep_curls else [])
+def dr_row_keys(name: str, keep_curls: bool, quiet: bool = False) -> list:
+    """``dr_on_capture``'s keys for a DR-only row: its switch off, the full run's curl options when its
+    DR kept curls, and the orientation quiet around the partings when the full run's DR quieted it
+    (the row then differs from ``full`` by the switch only)."""
+    return (["eval=0", f"{DR_KEYS[name]}=0"] + (["keep_curls=1"] if keep_curls else [])
+            + (["quiet=1"] if quiet else []))
 
 
 def scores_row(report: dict) -> dict:
@@ -208,10 +212,12 @@ def run(a) -> int:
         full_dir.mkdir(parents=True, exist_ok=True)
         secs, peak = run_measured([exe, "reconstruct", a.capture, "--out", full_dir], a.out / "full.log")
         rows["full"] = {"seconds": secs, "peak_mb": peak}
-    keep_curls = False
+    keep_curls = quiet = False
     if need_full:
         m = json.loads((full_dir / "metrics.json").read_text())
         keep_curls = bool(m.get("dr_keeps_curls", False))
+        # The pipeline's DR quiets the orientation loss around the partings it found (session 38).
+        quiet = "parting_pixels_quieted" in m and (full_dir / "partings.ply").is_file()
         if "dr_strands" not in m:
             raise AblationError(f"{full_dir}/metrics.json has no dr_strands: run the full method (without --no-dr)")
         rows.setdefault("full", {})["scores"] = scores_row(m["dr_strands"])
@@ -231,11 +237,13 @@ def run(a) -> int:
                 init = a.out / "init"
                 init.mkdir(exist_ok=True)
                 for src, dst in [("init_guides.hair", "guides.hair"), ("init_strands.hair", "strands.hair"),
-                                 ("orient2d", "orient2d")]:
+                                 ("orient2d", "orient2d"), ("partings.ply", "partings.ply")]:
                     link = init / dst
+                    if not (full_dir / src).exists():
+                        continue
                     if not link.exists():
                         link.symlink_to((full_dir / src).resolve())
-                secs, peak = run_measured([dr_bin, a.capture, init, row_dir, *dr_row_keys(name, keep_curls)],
+                secs, peak = run_measured([dr_bin, a.capture, init, row_dir, *dr_row_keys(name, keep_curls, quiet)],
                                           a.out / f"{name}.log")
             report = evaluate(exe, row_dir / "strands.hair", gt)
         else:

@@ -53,3 +53,4 @@ def test_dr_rows_switch_one_key_off_and_keep_the_full_runs_curl_options():
     assert ablations.dr_row_keys("no_n", False) == ["eval=0", "n=0"]
     assert ablations.dr_row_keys("no_reparam", True) == ["eval=0", "reparam=0", "keep_curls=1"]
     assert ablations.dr_row_keys("no_guide_opt", True)[1] == "guide_opt=0"
+    assert ablations.dr_row_keys("no_n", False, quiet=True) == ["eval=0", "n=0", "quiet=1"]
