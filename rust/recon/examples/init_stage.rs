@@ -137,8 +137,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t_grow = t.elapsed().as_secs_f64();
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
     // Where the guides stop, by reason: a histogram of the tip height (10 cm bins from -0.5 m).
-    // Tips and starts of the guides as grown before free starts: `grow_one` alone cannot tell
-    // whether `grow_guides` let a guide start free (that depends on the whole style).
+    // Tips of the guides as grown without free starts.
     let fixed = GrowParams { root_gap: 0.0, ..gp };
     let mut hist = std::collections::BTreeMap::<String, [u32; 8]>::new();
     for i in 0..groots.len() {
