@@ -6,12 +6,15 @@
 //!
 //! `cargo run --release -p hairrecon-recon --example init_stage -- CAPTURE DIR OUT [key=value ...]`
 //! keys: `guides`, `children`, `voxel`, `max_point_dist`, `scalp_dist`, `band`, `outer_margin`,
-//! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `k`, `root_gap`, `smooth_sigma` (and the other `GrowParams` fields), `gt_every` (score against every n-th
+//! `gravity`, `trace_radius`, `trace_weight`, `trace_pull`, `step`, `max_gap`, `exit_cos`, `max_length`, `grow_budget`, `k`, `root_gap`, `smooth_sigma` (and the other `GrowParams` fields), `gt_every` (score against every n-th
 //! ground-truth strand only, for speed). Environment: `GT_VOLUME=1` prints how much of the ground
 //! truth lies in the hair volume and inside the raw mesh; `START_ANGLES=1` how guides and ground truth
 //! leave the scalp; `DEBUG_ROOTS=1` prints the start of every 200th guide (`DEBUG_EVERY=N`: every N-th); `GT_GUIDES=1` replaces
 //! the guides by the ground-truth strands rooted nearest their roots, to score the children's
-//! interpolation alone.
+//! interpolation alone. The tips' histogram by stop reason grows the guides without free starts
+//! unless `FREE_STARTS=1` (then as the pipeline does); `TIPS_CSV=PATH` writes each guide's tip and
+//! stop reason; `ZIGZAG=1` prints the mean turn between consecutive steps of the grown guides
+//! (before smoothing) by depth under the outer surface and clearance from the head.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -72,6 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "trace_power" => gp.trace_power = f,
             "max_turn_deg" => gp.max_turn = f.to_radians(),
             "max_length" => gp.max_length = f,
+            "grow_budget" => gp.grow_budget = f,
             "k" => gp.blend.k = f as usize,
             "min_guide_fraction" => gp.blend.min_guide_fraction = f,
             "parting_reach" => gp.blend.parting_reach = f,
@@ -113,6 +117,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let trace = (gp.trace_radius > 0.0).then(|| PointIndex::new(points.positions.clone(), points.directions.clone()));
     let (guides, gstats) = grow_guides(&flow, trace.as_ref(), &groots, &gp, &NoProgress)?;
+    if std::env::var_os("ZIGZAG").is_some() {
+        // The turn between consecutive steps of the grown guides (before smoothing), by the
+        // step's depth under the outer surface and its clearance from the head.
+        let mut bins = std::collections::BTreeMap::<String, (f64, u64)>::new();
+        for g in guides.iter() {
+            for w in g.windows(3) {
+                let (a, b) = ((w[1] - w[0]).normalize_or_zero(), (w[2] - w[1]).normalize_or_zero());
+                let turn = a.dot(b).clamp(-1.0, 1.0).acos().to_degrees() as f64;
+                let so = flow.grid.trilinear(&flow.sd_outer, w[1]).unwrap_or(f32::NAN);
+                let si = flow.grid.trilinear(&flow.sd_inner, w[1]).unwrap_or(f32::NAN);
+                let ko = if so > -0.001 {
+                    "outer>-1mm"
+                } else if so > -0.004 {
+                    "outer -4..-1mm"
+                } else {
+                    "outer<-4mm"
+                };
+                let ki = if si < 0.003 { "head<3mm" } else { "head>3mm" };
+                let e = bins.entry(format!("{ko:>15} {ki}")).or_default();
+                e.0 += turn;
+                e.1 += 1;
+            }
+        }
+        for (k, (sum, n)) in &bins {
+            println!("  zigzag {k}: {n} steps, mean turn {:.1} deg", sum / (*n).max(1) as f64);
+        }
+    }
     let (guides, sstats) = smooth_guides(&guides, trace.as_ref(), Some(&flow), &gp);
     println!("smooth: {sstats:?}");
     let gt = capture.gt_strands.as_ref().map(read_strands).transpose()?;
@@ -138,8 +169,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("laplace: {lstats:?} ({t_flow:.1} s)");
     // Where the guides stop, by reason: a histogram of the tip height (10 cm bins from -0.5 m).
     // Tips of the guides as grown without free starts.
-    let fixed = GrowParams { root_gap: 0.0, ..gp };
+    let fixed = if std::env::var_os("FREE_STARTS").is_some() { gp } else { GrowParams { root_gap: 0.0, ..gp } };
     let mut hist = std::collections::BTreeMap::<String, [u32; 8]>::new();
+    // `TIPS_CSV=PATH`: every guide's tip and why it stopped (x,y,z,reason,points).
+    let mut tips_csv = String::from("x,y,z,reason,points\n");
     for i in 0..groots.len() {
         let (pts, stop) = grow_one(&flow, trace.as_ref(), groots.positions[i], groots.growth[i], &fixed);
         let z = pts.last().map_or(0.0, |p| p.z);
@@ -152,6 +185,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Stop::Loop => "loop",
         };
         hist.entry(key.into()).or_default()[b] += 1;
+        if let Some(t) = pts.last() {
+            tips_csv.push_str(&format!("{},{},{},{},{}\n", t.x, t.y, t.z, key, pts.len()));
+        }
+    }
+    if let Some(path) = std::env::var_os("TIPS_CSV") {
+        std::fs::write(path, &tips_csv)?;
     }
     for (k, h) in &hist {
         println!("  tips {k:>10} by z from -0.5 m: {h:?}");
