@@ -1,8 +1,9 @@
 //! `hairrecon reconstruct`: the whole pipeline from a capture folder to optimized strands
-//! ([`hairrecon_recon::pipeline::reconstruct`]: initial strands, then DR unless `--no-dr`), with a
-//! progress bar per stage (DR's shows the current loss), the time of each stage at the end and,
-//! when the capture has ground truth, the metric table before and after DR (every stage's metrics
-//! are in `metrics.json`). `--print-options` shows the options a run would use and exits.
+//! ([`hairrecon_recon::reconstruct`]: initial strands, then DR unless `--no-dr`), with a progress
+//! bar per stage (DR's shows the current loss), the time of each stage at the end and, when the
+//! capture has ground truth, the metric table before and after DR (every stage's scores are in
+//! `report.json`). `--from`/`--stop-after` run part of it; `--config` replays a run's
+//! `config.json`; `--print-config` shows the configuration a run would use and exits.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -10,9 +11,10 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use hairrecon_core::capture::Capture;
-use hairrecon_recon::dr::DrOptions;
-use hairrecon_recon::pipeline::{reconstruct, ReconstructOptions, Stage};
+use hairrecon_core::metric::MetricReport;
+use hairrecon_recon::config::{ConfigFile, ReconstructConfig, Stage};
 use hairrecon_recon::progress::Progress;
+use hairrecon_recon::{reconstruct, Plan};
 use indicatif::ProgressBar;
 
 use crate::CmdResult;
@@ -21,24 +23,32 @@ use crate::CmdResult;
 pub struct ReconstructArgs {
     /// Capture folder (or its capture.json).
     capture: PathBuf,
-    /// Output folder: every stage's result goes there.
+    /// Output folder: every stage's result goes there, with config.json and report.json.
     #[arg(long)]
     out: PathBuf,
-    /// Stop after this stage: orient2d, orient3d, direction, init (before DR) or dr.
-    #[arg(long)]
+    /// Start from this stage, reloading what an earlier run saved in --out for the stages before
+    /// it: orient2d, orient3d, partings, direction, init or dr.
+    #[arg(long, value_name = "STAGE")]
+    from: Option<String>,
+    /// Stop after this stage: orient2d, orient3d, partings, direction, init (before DR) or dr.
+    #[arg(long, value_name = "STAGE")]
     stop_after: Option<String>,
-    /// Guide strands.
-    #[arg(long, default_value_t = 2000)]
-    guides: usize,
-    /// Child strands.
-    #[arg(long, default_value_t = 50000)]
-    children: usize,
+    /// Start from this configuration (a run's config.json, or `--print-config`'s output); the
+    /// options below override it.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Guide strands [default: 2000].
+    #[arg(long)]
+    guides: Option<usize>,
+    /// Child strands [default: 50000].
+    #[arg(long)]
+    children: Option<usize>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    /// Seed of every random choice [default: 0].
+    #[arg(long)]
+    seed: Option<u64>,
     /// Ablation: the gravity heuristic instead of the global direction optimization.
     #[arg(long)]
     no_global_opt: bool,
@@ -46,10 +56,11 @@ pub struct ReconstructArgs {
     #[arg(long)]
     no_strand_init: bool,
     /// Curls: `auto` (the capture decides whether the hair is curly, the handedness, and the period
-    /// from the hair surface's bumps, with the radius of a 60° pitch), `off` (strands follow the points' directions, as for straight and wavy
-    /// hair), or RADIUS_MM,PERIOD_MM,HAND with HAND 1 right-handed, -1 left-handed (e.g. 6.5,22,1).
-    #[arg(long, default_value = "auto")]
-    curl: String,
+    /// from the hair surface's bumps, with the radius of a 60° pitch), `off` (strands follow the
+    /// points' directions, as for straight and wavy hair), or RADIUS_MM,PERIOD_MM,HAND with HAND 1
+    /// right-handed, -1 left-handed (e.g. 6.5,22,1) [default: auto].
+    #[arg(long)]
+    curl: Option<String>,
     /// Keep the initial strands: no strand optimization by differentiable rendering (DR).
     #[arg(long)]
     no_dr: bool,
@@ -70,33 +81,32 @@ pub struct ReconstructArgs {
     /// DR ablation: the Laplacian along strands only, without N between neighbouring strands.
     #[arg(long)]
     no_neighbor_reparam: bool,
-    /// DR steps on the guides (children following them).
-    #[arg(long, default_value_t = DrOptions::default().iterations_guides)]
-    dr_iters_guides: usize,
-    /// DR steps on the children.
-    #[arg(long, default_value_t = DrOptions::default().iterations_children)]
-    dr_iters_children: usize,
+    /// DR steps on the guides (children following them) [default: 60].
+    #[arg(long)]
+    dr_iters_guides: Option<usize>,
+    /// DR steps on the children [default: 20].
+    #[arg(long)]
+    dr_iters_children: Option<usize>,
     /// DR learning rate: the largest step of a point's coordinate in u per iteration, metres (halved
-    /// when the strands carry curls, unless --dr-plain-curls).
-    #[arg(long, default_value_t = DrOptions::default().lr)]
-    dr_lr: f32,
+    /// when the strands carry curls, unless --dr-plain-curls) [default: 0.002].
+    #[arg(long)]
+    dr_lr: Option<f32>,
     /// With curls, optimize them like any strands: by default DR keeps their shape (curvature held to
-    /// the init's own, half the learning rate), which scored 18.7 · 72.7 · 92.3 against 17.3 · 71.5 ·
-    /// 92.2 at 1 · 2 · 3 mm on the paper curly capture (whole runs, session 30).
+    /// the init's own, half the learning rate).
     #[arg(long)]
     dr_plain_curls: bool,
-    /// DR views rendered per step (random, seeded); more is steadier and slower.
-    #[arg(long, default_value_t = DrOptions::default().views_per_step)]
-    dr_views: usize,
-    /// λ of the reparameterization u = (I + λL)x: larger moves strands more smoothly.
-    #[arg(long, default_value_t = DrOptions::default().lambda)]
-    dr_lambda: f32,
-    /// Rendered strand width in DR, millimetres.
-    #[arg(long, default_value_t = (DrOptions::default().width_m * 1e6).round() / 1e3)]
-    dr_width_mm: f32,
-    /// Print the options this run would use and exit.
+    /// DR views rendered per step (random, seeded); more is steadier and slower [default: 4].
     #[arg(long)]
-    print_options: bool,
+    dr_views: Option<usize>,
+    /// λ of the reparameterization u = (I + λL)x: larger moves strands more smoothly [default: 10].
+    #[arg(long)]
+    dr_lambda: Option<f32>,
+    /// Rendered strand width in DR, millimetres [default: 0.2].
+    #[arg(long)]
+    dr_width_mm: Option<f32>,
+    /// Print the configuration this run would use (JSON, for --config) and exit.
+    #[arg(long, alias = "print-options")]
+    print_config: bool,
 }
 
 /// One indicatif bar per stage, replaced when the stage changes. When stderr is not a terminal
@@ -155,79 +165,80 @@ impl Bars {
     }
 }
 
-/// The pipeline options of the arguments.
-fn options(a: &ReconstructArgs) -> Result<ReconstructOptions, Box<dyn std::error::Error + Send + Sync>> {
-    let stop_after = a.stop_after.as_deref().map(str::parse::<Stage>).transpose()?;
-    if !(a.dr_lr.is_finite() && a.dr_lr > 0.0) {
-        return Err(format!("--dr-lr must be a positive number, got {}", a.dr_lr).into());
+/// The configuration of the arguments: `--config` (else the defaults) with the options given.
+fn config(a: &ReconstructArgs) -> Result<ReconstructConfig, Box<dyn std::error::Error + Send + Sync>> {
+    let mut c = match &a.config {
+        Some(p) => ConfigFile::load(p)?.config,
+        None => ReconstructConfig::default(),
+    };
+    let positive = |v: f32, flag: &str| -> Result<f32, String> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("{flag} must be a positive number, got {v}"))
+        }
+    };
+    let d = &mut c.dr_options;
+    if let Some(v) = a.dr_lr {
+        d.lr = positive(v, "--dr-lr")?;
     }
-    if !(a.dr_lambda.is_finite() && a.dr_lambda >= 0.0) {
-        return Err(format!("--dr-lambda must be at least 0, got {}", a.dr_lambda).into());
+    if let Some(v) = a.dr_lambda {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(format!("--dr-lambda must be at least 0, got {v}").into());
+        }
+        d.lambda = v;
     }
-    if !(a.dr_width_mm.is_finite() && a.dr_width_mm > 0.0) {
-        return Err(format!("--dr-width-mm must be a positive number, got {}", a.dr_width_mm).into());
+    if let Some(v) = a.dr_width_mm {
+        d.width_m = positive(v, "--dr-width-mm")? * 1e-3;
     }
-    if a.dr_views == 0 {
-        return Err("--dr-views must be at least 1".into());
+    match a.dr_views {
+        Some(0) => return Err("--dr-views must be at least 1".into()),
+        Some(v) => d.views_per_step = v,
+        None => {}
     }
-    if a.guides == 0 || a.children == 0 {
+    d.iterations_guides = a.dr_iters_guides.unwrap_or(d.iterations_guides);
+    d.iterations_children = a.dr_iters_children.unwrap_or(d.iterations_children);
+    d.guide_opt &= !a.no_guide_opt;
+    d.reparam &= !a.no_reparam;
+    d.neighbor_reparam &= !a.no_neighbor_reparam;
+    if let Some(s) = a.seed {
+        (c.seed, c.dr_options.seed) = (s, s);
+    }
+    if matches!(a.guides, Some(0)) || matches!(a.children, Some(0)) {
         return Err("--guides and --children must be at least 1".into());
     }
-    Ok(ReconstructOptions {
-        guides: a.guides,
-        children: a.children,
-        stop_after,
-        global_opt: !a.no_global_opt,
-        strand_init: !a.no_strand_init,
-        seed: a.seed,
-        dr: !a.no_dr,
-        dr_keep_curls: !a.dr_plain_curls,
-        hull_trim: !a.no_hull_trim,
-        parting: hairrecon_recon::parting::PartingParams { enabled: !a.no_parting, ..Default::default() },
-        curl: a.curl.parse().map_err(|e: String| format!("--curl: {e}"))?,
-        dr_options: DrOptions {
-            iterations_guides: a.dr_iters_guides,
-            iterations_children: a.dr_iters_children,
-            lr: a.dr_lr,
-            lambda: a.dr_lambda,
-            width_m: a.dr_width_mm * 1e-3,
-            views_per_step: a.dr_views,
-            guide_opt: !a.no_guide_opt,
-            reparam: !a.no_reparam,
-            neighbor_reparam: !a.no_neighbor_reparam,
-            seed: a.seed,
-            ..DrOptions::default()
-        },
-        ..ReconstructOptions::default()
-    })
+    c.guides = a.guides.unwrap_or(c.guides);
+    c.children = a.children.unwrap_or(c.children);
+    c.global_opt &= !a.no_global_opt;
+    c.strand_init &= !a.no_strand_init;
+    c.dr &= !a.no_dr;
+    c.dr_keep_curls &= !a.dr_plain_curls;
+    c.hull_trim &= !a.no_hull_trim;
+    c.parting.enabled &= !a.no_parting;
+    if let Some(curl) = &a.curl {
+        c.curl = curl.parse().map_err(|e: String| format!("--curl: {e}"))?;
+    }
+    c.validate()?;
+    Ok(c)
 }
 
-/// The metric table of one strand set in `metrics.json` (P/R/F1 per threshold, directed and
-/// undirected), or None if it is not there.
-fn metric_table(m: &serde_json::Value) -> Option<String> {
-    let rows = |mode: &str| m[mode].as_array().cloned();
-    let (dir, und) = (rows("directed")?, rows("undirected")?);
+/// The metric table of one strand set (P/R/F1 per threshold, directed and undirected).
+fn metric_table(m: &MetricReport) -> String {
     let mut s = format!("{:<11}", "threshold");
-    for r in &dir {
-        let h = format!("{}mm/{}°", r["dist_mm"].as_f64()?, r["angle_deg"].as_f64()?);
-        s.push_str(&format!("{h:>24}"));
+    for r in &m.directed {
+        s.push_str(&format!("{:>24}", format!("{}mm/{}°", r.dist_mm, r.angle_deg)));
     }
     s.push_str(&format!("\n{:<11}", "measure"));
-    for _ in &dir {
+    for _ in &m.directed {
         s.push_str(&format!("{:>8}{:>8}{:>8}", "P", "R", "F1"));
     }
-    for (name, rows) in [("directed", &dir), ("undirected", &und)] {
+    for (name, rows) in [("directed", &m.directed), ("undirected", &m.undirected)] {
         s.push_str(&format!("\n{name:<11}"));
         for r in rows {
-            s.push_str(&format!(
-                "{:>8.1}{:>8.1}{:>8.1}",
-                r["precision"].as_f64()?,
-                r["recall"].as_f64()?,
-                r["f1"].as_f64()?
-            ));
+            s.push_str(&format!("{:>8.1}{:>8.1}{:>8.1}", r.precision, r.recall, r.f1));
         }
     }
-    Some(s)
+    s
 }
 
 pub fn run(a: ReconstructArgs) -> CmdResult {
@@ -238,29 +249,33 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
         // Read by rayon when its global pool starts, which has not happened yet.
         std::env::set_var("RAYON_NUM_THREADS", t.to_string());
     }
-    let opts = options(&a)?;
-    if a.print_options {
-        println!("{opts:#?}");
+    let cfg = config(&a)?;
+    if a.print_config {
+        println!("{}", serde_json::to_string_pretty(&ConfigFile::new(cfg))?);
         return Ok(());
     }
+    let plan = Plan {
+        from: a.from.as_deref().map(str::parse::<Stage>).transpose()?.unwrap_or(Stage::Orient2d),
+        stop_after: a.stop_after.as_deref().map(str::parse::<Stage>).transpose()?,
+    };
     let capture = Capture::load(&a.capture)?;
     let log = (!std::io::stderr().is_terminal()).then(|| Mutex::new((String::new(), Instant::now())));
     let bars = Bars { current: Mutex::new(None), log, start: Instant::now() };
-    let out = reconstruct(&capture, &a.out, &opts, &bars);
+    let out = reconstruct(&capture, &a.out, &cfg, plan, &bars);
     bars.finish();
     let out = out?;
-    let m = &out.metrics;
+    let r = &out.report;
     println!("stage times: (and the peak memory of the process at the end of each stage)");
     let mut total = 0.0;
-    for (s, t) in &out.stage_times {
-        match m.get("peak_rss_mb").and_then(|p| p.get(s)).and_then(|v| v.as_f64()) {
-            Some(mb) => println!("  {s:>10}  {t:8.2} s  {:6.2} GB", mb / 1024.0),
-            None => println!("  {s:>10}  {t:8.2} s"),
+    for s in &r.stages {
+        match s.peak_rss_mb {
+            Some(mb) => println!("  {:>10}  {:8.2} s  {:6.2} GB", s.stage, s.seconds, mb / 1024.0),
+            None => println!("  {:>10}  {:8.2} s", s.stage, s.seconds),
         }
-        total += t;
+        total += s.seconds;
     }
     println!("  {:>10}  {total:8.2} s", "total");
-    if let Some(st) = m.get("dr_stats") {
+    if let Some(st) = r.stages.iter().find(|s| s.stage == Stage::Dr).map(|s| &s.stats) {
         println!(
             "DR: {} steps, {:.2} s per step, mean CG iterations {:.1}",
             st["steps"],
@@ -268,14 +283,16 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
             st["mean_cg_iterations"].as_f64().unwrap_or(0.0)
         );
     }
-    for (key, title) in [("init_strands", "strands before DR (init)"), ("dr_strands", "strands after DR")] {
-        if let Some(t) = m.get(key).and_then(metric_table) {
-            println!("{title}, against the ground truth:\n{t}");
+    for (m, title) in [(&r.scores.init_strands, "strands before DR (init)"), (&r.scores.dr_strands, "strands after DR")]
+    {
+        if let Some(m) = m {
+            println!("{title}, against the ground truth:\n{}", metric_table(m));
         }
     }
-    if m.as_object().is_some_and(|m| !m.is_empty()) {
-        println!("every stage's metrics: {}", a.out.join("metrics.json").display());
+    for w in &r.warnings {
+        println!("warning: {w}");
     }
+    println!("report (times, memory, scores): {}", a.out.join("report.json").display());
     for (what, p) in [
         ("strands", &out.strands),
         ("guides", &out.guides),

@@ -6,7 +6,8 @@
 //! - [`mesh`]: triangle meshes, PLY/OBJ I/O, and a BVH for ray casts and closest points.
 //! - [`image_io`]: PNG (8/16-bit) and OpenEXR float images.
 //! - [`formats`]: mesh PLY/OBJ and hair files: Yuksel `.hair`, USC-HairSalon `.data`, PLY polylines, OBJ lines.
-//! - [`metric`]: the strand precision/recall/F1 metric of `docs/method.md`.
+//! - [`metric`]: the strand precision/recall/F1 metric (points matched at a distance and an angle).
+//! - [`spatial`]: the one kd-tree index over oriented points and the one arc-length sampler.
 //!
 //! Everything is validated at construction: inner loops assume finite, consistent data.
 
@@ -17,6 +18,7 @@ pub mod image_io;
 pub mod mesh;
 pub mod metric;
 pub mod scalp;
+pub mod spatial;
 pub mod strands;
 
 pub use camera::{Camera, CameraError};

@@ -18,7 +18,9 @@
 //! in parallel with rayon.
 
 use glam::Vec3;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use kiddo::SquaredEuclidean;
+
+use crate::spatial::PointIndex;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -58,7 +60,7 @@ impl Default for MetricOptions {
 }
 
 /// Scores at one threshold, in percent.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct Score {
     pub dist_mm: f32,
     pub angle_deg: f32,
@@ -68,7 +70,7 @@ pub struct Score {
 }
 
 /// Scores in both modes, one entry per threshold in the order given.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct MetricReport {
     pub directed: Vec<Score>,
     pub undirected: Vec<Score>,
@@ -289,21 +291,24 @@ impl SearchGrid {
     }
 }
 
-/// Points with unit tangents and a kd-tree over the points: one side of the comparison.
+/// Points with unit tangents and a kd-tree over the points ([`PointIndex`]): one side of the comparison.
 #[derive(Debug)]
 pub struct OrientedPoints {
-    pub points: Vec<Vec3>,
-    pub tangents: Vec<Vec3>,
-    tree: ImmutableKdTree<f32, 3>,
+    index: PointIndex,
+}
+
+impl std::ops::Deref for OrientedPoints {
+    type Target = PointIndex;
+    fn deref(&self) -> &PointIndex {
+        &self.index
+    }
 }
 
 impl OrientedPoints {
     /// Builds the kd-tree over oriented points (tangents should be unit vectors; zero never matches).
     pub fn new(points: Vec<Vec3>, tangents: Vec<Vec3>) -> Self {
         assert_eq!(points.len(), tangents.len(), "one tangent per point");
-        let arr: Vec<[f32; 3]> = points.iter().map(|p| p.to_array()).collect();
-        let tree = ImmutableKdTree::new_from_slice(&arr);
-        Self { points, tangents, tree }
+        Self { index: PointIndex::new(points, tangents) }
     }
 
     /// Resamples strands by arc length with `step` and builds the tree.
@@ -312,14 +317,6 @@ impl OrientedPoints {
         let t = r.tangents();
         let (points, _) = r.into_parts();
         Ok(Self::new(points, t))
-    }
-
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
     }
 
     /// For a query point and tangent, a bit mask: bit `i` is set when some point of this set

@@ -1,7 +1,7 @@
 //! `hairrecon.Reconstruction` (a background job Blender can poll and cancel) and
 //! `hairrecon.reconstruct` (the same, synchronous, for batch runs and tests).
 //!
-//! The job runs `hairrecon_recon::pipeline::reconstruct` on a plain Rust thread. Progress lives in
+//! The job runs `hairrecon_recon::reconstruct` on a plain Rust thread. Progress lives in
 //! a `SharedProgress` (atomics + a mutex), so `progress()` and `cancel()` only touch that state and
 //! never call back into Python from the worker (bpy is not thread-safe).
 
@@ -10,11 +10,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use hairrecon_core::capture::Capture;
-use hairrecon_recon::dr::DrOptions;
-use hairrecon_recon::pipeline::{
-    reconstruct as run_pipeline, ReconError, ReconstructOptions, ReconstructOutput, Stage,
-};
+use hairrecon_recon::config::{ConfigFile, ReconstructConfig, Stage};
 use hairrecon_recon::progress::{Progress, SharedProgress};
+use hairrecon_recon::{reconstruct as run_pipeline, Plan, ReconError, ReconstructOutput};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -22,63 +20,73 @@ use crate::error::{to_py, Cancelled, HairreconError};
 
 type Outcome = Result<ReconstructOutput, String>;
 
-/// The keyword arguments shared by `Reconstruction(...)` and `reconstruct(...)`.
-#[derive(Debug, Clone, Copy)]
+/// The keyword arguments shared by `Reconstruction(...)` and `reconstruct(...)`: each given one
+/// overrides `config` (a config.json path; else the library's defaults).
+#[derive(Debug, Clone, Default)]
 struct Args<'a> {
-    guides: usize,
-    children: usize,
+    config: Option<PathBuf>,
+    from_stage: Option<&'a str>,
     stop_after: Option<&'a str>,
-    seed: u64,
-    global_opt: bool,
-    strand_init: bool,
-    dr: bool,
+    guides: Option<usize>,
+    children: Option<usize>,
+    seed: Option<u64>,
+    global_opt: Option<bool>,
+    strand_init: Option<bool>,
+    dr: Option<bool>,
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
-    hull_trim: bool,
-    parting: bool,
-    curl: &'a str,
+    hull_trim: Option<bool>,
+    parting: Option<bool>,
+    curl: Option<&'a str>,
 }
 
-fn options(a: Args<'_>) -> PyResult<ReconstructOptions> {
-    let stop_after = match a.stop_after {
-        None => None,
-        Some(s) => Some(s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("stop_after: {e}")))?),
+fn stage(name: &str, s: Option<&str>) -> PyResult<Option<Stage>> {
+    s.map(|s| s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("{name}: {e}")))).transpose()
+}
+
+/// The configuration and plan of the arguments.
+fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
+    let mut c = match &a.config {
+        Some(p) => ConfigFile::load(p).map_err(to_py)?.config,
+        None => ReconstructConfig::default(),
     };
-    if a.guides == 0 || a.children == 0 {
+    if a.guides == Some(0) || a.children == Some(0) {
         return Err(HairreconError::new_err("guides and children must be at least 1"));
     }
-    let d = DrOptions::default();
-    let dr_options = DrOptions {
-        iterations_guides: a.dr_iters_guides.unwrap_or(d.iterations_guides),
-        iterations_children: a.dr_iters_children.unwrap_or(d.iterations_children),
-        seed: a.seed,
-        ..d
+    c.guides = a.guides.unwrap_or(c.guides);
+    c.children = a.children.unwrap_or(c.children);
+    if let Some(s) = a.seed {
+        (c.seed, c.dr_options.seed) = (s, s);
+    }
+    c.global_opt = a.global_opt.unwrap_or(c.global_opt);
+    c.strand_init = a.strand_init.unwrap_or(c.strand_init);
+    c.dr = a.dr.unwrap_or(c.dr);
+    c.dr_options.iterations_guides = a.dr_iters_guides.unwrap_or(c.dr_options.iterations_guides);
+    c.dr_options.iterations_children = a.dr_iters_children.unwrap_or(c.dr_options.iterations_children);
+    c.hull_trim = a.hull_trim.unwrap_or(c.hull_trim);
+    c.parting.enabled = a.parting.unwrap_or(c.parting.enabled);
+    if let Some(curl) = a.curl {
+        c.curl = curl.parse().map_err(|e: String| HairreconError::new_err(format!("curl: {e}")))?;
+    }
+    c.validate().map_err(to_py)?;
+    let plan = Plan {
+        from: stage("from_stage", a.from_stage)?.unwrap_or(Stage::Orient2d),
+        stop_after: stage("stop_after", a.stop_after)?,
     };
-    Ok(ReconstructOptions {
-        guides: a.guides,
-        children: a.children,
-        stop_after,
-        seed: a.seed,
-        global_opt: a.global_opt,
-        strand_init: a.strand_init,
-        dr: a.dr,
-        dr_options,
-        hull_trim: a.hull_trim,
-        parting: hairrecon_recon::parting::PartingParams { enabled: a.parting, ..Default::default() },
-        curl: a.curl.parse().map_err(|e: String| HairreconError::new_err(format!("curl: {e}")))?,
-        ..Default::default()
-    })
+    Ok((c, plan))
 }
 
 /// Runs the whole pipeline; any error or panic becomes a message (cancellation is kept apart).
 fn run(
     capture_dir: &std::path::Path,
     out_dir: &std::path::Path,
-    opts: &ReconstructOptions,
+    (cfg, plan): &(ReconstructConfig, Plan),
     progress: &dyn Progress,
 ) -> Result<ReconstructOutput, RunError> {
     let capture = Capture::load(capture_dir).map_err(|e| RunError::Failed(e.to_string()))?;
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_pipeline(&capture, out_dir, opts, progress))) {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        run_pipeline(&capture, out_dir, cfg, *plan, progress)
+    })) {
         Ok(Ok(out)) => Ok(out),
         Ok(Err(ReconError::Cancelled(_))) => Err(RunError::Cancelled),
         Ok(Err(e)) => Err(RunError::Failed(e.to_string())),
@@ -99,8 +107,8 @@ fn output_to_py<'py>(py: Python<'py>, out: &ReconstructOutput) -> PyResult<Bound
     d.set_item("init_strands", out.init_strands.clone())?;
     d.set_item("init_guides", out.init_guides.clone())?;
     d.set_item("loss_csv", out.loss_csv.clone())?;
-    d.set_item("stage_times", out.stage_times.clone())?;
-    d.set_item("metrics", crate::json_to_py(py, &out.metrics)?)?;
+    d.set_item("stage_times", out.report.stage_times())?;
+    d.set_item("report", crate::json_to_py(py, &serde_json::to_value(&out.report).map_err(to_py)?)?)?;
     Ok(d)
 }
 
@@ -111,7 +119,9 @@ fn run_error_to_py(e: RunError) -> PyErr {
     }
 }
 
-/// A reconstruction running in the background. `dr=False` keeps the initial strands (no
+/// A reconstruction running in the background. Every keyword left at None takes its value from
+/// `config` (a run's `config.json`), else the library's default. `from_stage` / `stop_after` run
+/// part of the pipeline (`hairrecon reconstruct --from / --stop-after`). `dr=False` keeps the initial strands (no
 /// optimization by differentiable rendering); `dr_iters_guides` / `dr_iters_children` set the DR
 /// steps (None: the library's defaults); `hull_trim=False` keeps the initial strands' ends that a
 /// view sees where its mask has no hair (by default they are cut at the visual hull before DR);
@@ -130,7 +140,7 @@ fn run_error_to_py(e: RunError) -> PyErr {
 pub struct Reconstruction {
     capture_dir: PathBuf,
     out_dir: PathBuf,
-    opts: ReconstructOptions,
+    opts: (ReconstructConfig, Plan),
     progress: Arc<SharedProgress>,
     handle: Mutex<Option<JoinHandle<Result<ReconstructOutput, RunError>>>>,
     outcome: Mutex<Option<Outcome>>,
@@ -140,27 +150,31 @@ pub struct Reconstruction {
 #[pymethods]
 impl Reconstruction {
     #[new]
-    #[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, parting=true, curl="auto"))]
+    #[pyo3(signature = (capture_dir, out_dir, config=None, from_stage=None, stop_after=None, guides=None, children=None, seed=None, global_opt=None, strand_init=None, dr=None, dr_iters_guides=None, dr_iters_children=None, hull_trim=None, parting=None, curl=None))]
     fn new(
         capture_dir: PathBuf,
         out_dir: PathBuf,
-        guides: usize,
-        children: usize,
+        config: Option<PathBuf>,
+        from_stage: Option<&str>,
         stop_after: Option<&str>,
-        seed: u64,
-        global_opt: bool,
-        strand_init: bool,
-        dr: bool,
+        guides: Option<usize>,
+        children: Option<usize>,
+        seed: Option<u64>,
+        global_opt: Option<bool>,
+        strand_init: Option<bool>,
+        dr: Option<bool>,
         dr_iters_guides: Option<usize>,
         dr_iters_children: Option<usize>,
-        hull_trim: bool,
-        parting: bool,
-        curl: &str,
+        hull_trim: Option<bool>,
+        parting: Option<bool>,
+        curl: Option<&str>,
     ) -> PyResult<Self> {
         let args = Args {
+            config,
+            from_stage,
+            stop_after,
             guides,
             children,
-            stop_after,
             seed,
             global_opt,
             strand_init,
@@ -220,7 +234,7 @@ impl Reconstruction {
 
     /// Waits for the work (GIL released) and returns its result dict: `strands`, `guides` (the final
     /// strands: paths or None), `init_strands`, `init_guides` (before DR, when it ran), `loss_csv`,
-    /// `stage_times` [(name, seconds)], `metrics` (dict). Raises `Cancelled` or `HairreconError`.
+    /// `stage_times` [(name, seconds)], `report` (dict: what `report.json` holds). Raises `Cancelled` or `HairreconError`.
     fn result<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let handle = self.handle.lock().map_err(to_py)?.take();
         if let Some(h) = handle {
@@ -245,28 +259,32 @@ impl Reconstruction {
 /// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
 /// while Rust works). Returns the same dict as `Reconstruction.result()`.
 #[pyfunction]
-#[pyo3(signature = (capture_dir, out_dir, guides=2000, children=50000, stop_after=None, seed=0, global_opt=true, strand_init=true, dr=true, dr_iters_guides=None, dr_iters_children=None, hull_trim=true, parting=true, curl="auto"))]
+#[pyo3(signature = (capture_dir, out_dir, config=None, from_stage=None, stop_after=None, guides=None, children=None, seed=None, global_opt=None, strand_init=None, dr=None, dr_iters_guides=None, dr_iters_children=None, hull_trim=None, parting=None, curl=None))]
 fn reconstruct<'py>(
     py: Python<'py>,
     capture_dir: PathBuf,
     out_dir: PathBuf,
-    guides: usize,
-    children: usize,
+    config: Option<PathBuf>,
+    from_stage: Option<&str>,
     stop_after: Option<&str>,
-    seed: u64,
-    global_opt: bool,
-    strand_init: bool,
-    dr: bool,
+    guides: Option<usize>,
+    children: Option<usize>,
+    seed: Option<u64>,
+    global_opt: Option<bool>,
+    strand_init: Option<bool>,
+    dr: Option<bool>,
     dr_iters_guides: Option<usize>,
     dr_iters_children: Option<usize>,
-    hull_trim: bool,
-    parting: bool,
-    curl: &str,
+    hull_trim: Option<bool>,
+    parting: Option<bool>,
+    curl: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(Args {
+        config,
+        from_stage,
+        stop_after,
         guides,
         children,
-        stop_after,
         seed,
         global_opt,
         strand_init,

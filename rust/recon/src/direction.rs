@@ -30,9 +30,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::metrics::PointIndex;
 use crate::points3d::OrientedPoints;
 use crate::roots::{scalp_point, Scalp};
+use hairrecon_core::spatial::PointIndex;
 
 /// Parameters of the global direction optimization.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

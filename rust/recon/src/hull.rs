@@ -30,7 +30,7 @@ use crate::orient2d::{GrayImage, Orient2dError};
 use crate::progress::{Cancelled, Progress};
 
 /// Options of the visual hull.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HullParams {
     /// A mask pixel is hair when its coverage is at least this (0.5: the silhouette; 0.1 kept more
     /// of the ends and scored 87.8 · 50.6 where 0.5 scored 87.8 · 51.8, straight after DR · curly

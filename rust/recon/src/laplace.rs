@@ -22,10 +22,10 @@ use glam::Vec3;
 use hairrecon_core::Bvh;
 use rayon::prelude::*;
 
-use crate::metrics::PointIndex;
 use crate::points3d::{OrientedPoints, PointsError};
 use crate::progress::{Cancelled, Progress};
 use crate::roots::{scalp_point, Scalp};
+use hairrecon_core::spatial::PointIndex;
 
 /// A regular grid: voxel centres at `origin + voxel * (i, j, k)`.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,31 +1,48 @@
 //! hairrecon-recon: the reconstruction pipeline, one stage per module, data flowing one way:
-//! capture → orientation maps → oriented 3D points → directed points → initial strands → output.
+//! capture → orientation maps → oriented 3D points → partings → directed points → initial
+//! strands → strands optimized by differentiable rendering.
 //!
-//! - [`progress`]: how a long stage reports progress and learns it was cancelled.
-//! - [`raw_mesh`]: the fallback raw mesh, TSDF fusion of depth maps.
+//! The method, stage by stage (each module's doc names its reference):
 //! - [`orient2d`]: 2D orientation maps by a Gabor filter bank.
-//! - [`points3d`]: oriented 3D points by line-based MVS on the raw mesh.
-//! - [`direction`]: global direction of the points (MST from the scalp) or the gravity heuristic.
-//! - [`roots`]: the scalp with S(p_s), and roots on it.
+//! - [`points3d`]: oriented 3D points by line-based MVS on the raw mesh ([`oriented_points`]).
 //! - [`parting`]: partings, where the views see the scalp's skin; S turns away from them.
+//! - [`direction`]: the points' root-to-tip directions (least squares from the scalp) or the
+//!   gravity heuristic.
+//! - [`roots`]: the scalp with S(p_s), and roots on it.
 //! - [`laplace`]: the interior flow of the hair volume by Laplace's equation.
 //! - [`grow`]: guide strands grown through the flow, children interpolated.
-//! - [`curl`]: curly hair: ringlet axes from the directed points, helices swept about grown strands.
+//! - [`curl`] and [`curl_choice`]: curly hair: ringlet axes, the curl, helices about grown strands.
 //! - [`hull`]: the visual hull of the hair; strands cut where a view sees no hair.
-//! - [`pipeline`]: all of the above in order, with outputs and metrics ([`pipeline::reconstruct`]).
-//! - [`metrics`]: per-stage metrics against ground truth.
+//! - [`dr`]: strand optimization by differentiable rendering of line segments.
+//!
+//! Around them:
+//! - [`config`]: every parameter, as one serde config; [`stages`]: each stage's typed output that
+//!   saves and reloads itself; [`runner`]: the stages in order ([`runner::reconstruct`]).
+//! - [`eval`]: scores against ground truth, beside the run; [`report`]: `report.json`.
+//! - [`raw_mesh`]: the fallback raw mesh, TSDF fusion of depth maps.
+//! - [`progress`]: how a long stage reports progress and learns it was cancelled.
 
+pub mod config;
 pub mod curl;
+pub mod curl_choice;
 pub mod direction;
 pub mod dr;
+pub mod error;
+pub mod eval;
 pub mod grow;
 pub mod hull;
 pub mod laplace;
-pub mod metrics;
 pub mod orient2d;
+pub mod oriented_points;
 pub mod parting;
-pub mod pipeline;
 pub mod points3d;
 pub mod progress;
 pub mod raw_mesh;
+pub mod report;
 pub mod roots;
+pub mod runner;
+pub mod stages;
+
+pub use config::{ReconstructConfig, Stage};
+pub use error::ReconError;
+pub use runner::{reconstruct, Plan, ReconstructOutput};

@@ -31,7 +31,7 @@ use crate::progress::{Cancelled, Progress};
 use crate::roots::Scalp;
 
 /// Options of the parting stage.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PartingParams {
     /// Find partings and turn S beside them (false: `--no-parting`).
     pub enabled: bool,

@@ -233,7 +233,7 @@ impl DrTargets {
 }
 
 /// Options of [`optimize()`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DrOptions {
     /// Adam steps on the guides (0 or `guide_opt = false`: no guide stage).
     pub iterations_guides: usize,
@@ -311,7 +311,8 @@ impl Default for DrOptions {
             k_neighbors: 10,
             neighbor_weight: 0.05,
             knn_key: KnnKey::Middle,
-            width_m: 0.0002,
+            // 0.2 mm as the CLI has always computed it (0.2 × 1e-3 in f32, one ulp above 0.0002).
+            width_m: 0.2 * 1e-3,
             views_per_step: 4,
             reparam: true,
             neighbor_reparam: true,

@@ -25,7 +25,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::metrics::PointIndex;
+use hairrecon_core::spatial::PointIndex;
 
 /// Which point of a strand the nearest-strand search of N uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -1,120 +1,132 @@
-//! Per-stage metrics against ground truth, and the small kd-tree index they share.
+//! Evaluation against ground truth, apart from the reconstruction: the runner hands each stage's
+//! output to an [`Evaluator`] when the capture has ground truth, and the scores go into the run's
+//! report ([`crate::report::Scores`]). No stage reads ground truth.
 //!
-//! In: a stage's output (oriented points, directed points, strands) and the capture's ground-truth
-//! strands. Out: plain numbers (serialisable) that `hairrecon reconstruct` prints and writes to
-//! `metrics.json`. Definitions follow the evaluation protocol of `docs/method.md` (points matched
-//! at a distance and an angle, undirected = |cos|):
+//! Definitions (points matched at a distance and an angle, undirected = |cos|):
+//! - 2D orientation maps: the mean undirected angle to `gt/orientation` over the pixels that are
+//!   hair in both ([`crate::orient2d::summarize_errors`]).
 //! - oriented points: *precision* = share of points with a ground-truth point within 2 mm whose
-//!   tangent is within 20° (undirected); *coverage* = share of the ground-truth points of the
-//!   visible hair surface (within `surface_band` of the raw mesh) that have such a point.
+//!   tangent is within 20°; *coverage* = share of the ground-truth points of the visible hair
+//!   surface (within 3 mm inside the raw mesh) that have such a point.
 //! - directed points: *agreement* = among points matched (undirected, 2 mm/20°), the share whose
 //!   direction also points the same way as the ground-truth tangent (dot > 0).
 //! - ringlet axes (curly hair, [`crate::curl`]): each point is matched to the nearest ground-truth
 //!   strand sample within 2 mm, whose axis is the tangent of that strand's centreline over one turn
 //!   of arc; *within_20* = share of matched points whose axis is within 20° of it (undirected),
 //!   *directed_within_20* the same with the sign.
-//!
-//! The strand metric itself (precision/recall/F1) is `hairrecon_core::metric`.
+//! - strands: the strand metric (precision/recall/F1 at 1/2/3 mm and 10/20/30°, directed and
+//!   undirected) of [`hairrecon_core::metric`].
 
-use std::num::NonZero;
+use std::cell::OnceCell;
 
 use glam::Vec3;
-use hairrecon_core::StrandSet;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use hairrecon_core::capture::Capture;
+use hairrecon_core::formats::read_strands;
+use hairrecon_core::metric::{evaluate, MetricOptions, MetricReport};
+use hairrecon_core::spatial::PointIndex;
+use hairrecon_core::{Bvh, StrandSet};
 use rayon::prelude::*;
 
-/// Points with unit tangents and a kd-tree over the points.
+use crate::curl::Curl;
+use crate::error::ReconError;
+use crate::orient2d::{orientation_errors, summarize_errors, OrientationError, OrientationMap};
+use crate::oriented_points::OrientedPoints;
+
+/// Match distance and angle of the point scores.
+const MATCH_DIST: f32 = 0.002;
+const MATCH_ANGLE_DEG: f32 = 20.0;
+/// Ground-truth points up to this far inside the raw mesh count as the visible hair surface.
+const SURFACE_BAND: f32 = 0.003;
+
+/// The capture's ground-truth strands, indexed.
 #[derive(Debug)]
-pub struct PointIndex {
-    pub points: Vec<Vec3>,
-    pub tangents: Vec<Vec3>,
-    tree: ImmutableKdTree<f32, 3>,
+pub struct GroundTruth {
+    pub strands: StrandSet,
+    /// Points every millimetre with their tangents.
+    pub index: PointIndex,
+    /// Ground-truth points within the surface band of the raw mesh.
+    pub surface: Vec<usize>,
 }
 
-impl PointIndex {
-    pub fn new(points: Vec<Vec3>, tangents: Vec<Vec3>) -> Self {
-        let arr: Vec<[f32; 3]> = points.iter().map(|p| p.to_array()).collect();
-        let tree = ImmutableKdTree::new_from_slice(&arr);
-        Self { points, tangents, tree }
-    }
-
-    /// Strand points resampled every `step` metres with root→tip unit tangents.
-    pub fn from_strands(strands: &StrandSet, step: f32) -> Self {
-        let (points, tangents) = sample_strands(strands, step);
-        Self::new(points, tangents)
-    }
-
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
-    }
-
-    /// Indices of the `k` nearest points (nearest first), at most `len()`.
-    pub fn nearest(&self, p: Vec3, k: usize) -> Vec<(usize, f32)> {
-        if self.points.is_empty() || k == 0 {
-            return Vec::new();
-        }
-        let k = NonZero::new(k.min(self.points.len())).unwrap_or(NonZero::<usize>::MIN);
-        self.tree
-            .nearest_n::<SquaredEuclidean>(&p.to_array(), k)
-            .into_iter()
-            .map(|n| (n.item as usize, n.distance.sqrt()))
-            .collect()
-    }
-
-    /// Indices of the points within `r` (any order).
-    pub fn within(&self, p: Vec3, r: f32) -> Vec<usize> {
-        if self.points.is_empty() {
-            return Vec::new();
-        }
-        self.tree
-            .within_unsorted::<SquaredEuclidean>(&p.to_array(), r * r)
-            .into_iter()
-            .map(|n| n.item as usize)
-            .collect()
-    }
-
-    /// The best match of an undirected query within `dist` and `angle` (radians): the index of the
-    /// point with the largest |cos| among those in range, if any passes.
-    pub fn match_undirected(&self, p: Vec3, t: Vec3, dist: f32, angle: f32) -> Option<usize> {
-        let cmin = angle.cos();
-        let mut best: Option<(usize, f32)> = None;
-        for i in self.within(p, dist) {
-            let c = self.tangents[i].dot(t).abs();
-            if c >= cmin && best.is_none_or(|(_, b)| c > b) {
-                best = Some((i, c));
-            }
-        }
-        best.map(|b| b.0)
+impl GroundTruth {
+    /// Loads and indexes the capture's ground-truth strands (`None` when it has none).
+    pub fn load(capture: &Capture, raw: &Bvh) -> Result<Option<Self>, ReconError> {
+        let Some(p) = &capture.gt_strands else { return Ok(None) };
+        let strands = read_strands(p)?;
+        let index = PointIndex::from_strands(&strands, 0.001);
+        let surface = (0..index.len())
+            .into_par_iter()
+            .filter(|&i| raw.signed_distance(index.points[i], 0.02).is_some_and(|d| d > -SURFACE_BAND))
+            .collect();
+        Ok(Some(Self { strands, index, surface }))
     }
 }
 
-/// Samples strands every `step` (arc length) with unit tangents (root → tip).
-pub fn sample_strands(strands: &StrandSet, step: f32) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut pts = Vec::new();
-    let mut tans = Vec::new();
-    for s in strands.iter() {
-        let mut carry = 0.0f32;
-        for w in s.windows(2) {
-            let d = w[1] - w[0];
-            let len = d.length();
-            if len <= 1e-9 {
-                continue;
-            }
-            let t = d / len;
-            let mut a = carry;
-            while a < len {
-                pts.push(w[0] + t * a);
-                tans.push(t);
-                a += step;
-            }
-            carry = a - len;
-        }
+/// Scores stage outputs against a capture's ground truth (loaded once, when first needed).
+#[derive(Debug)]
+pub struct Evaluator<'a> {
+    capture: &'a Capture,
+    gt: OnceCell<Option<GroundTruth>>,
+}
+
+impl<'a> Evaluator<'a> {
+    pub fn new(capture: &'a Capture) -> Self {
+        Self { capture, gt: OnceCell::new() }
     }
-    (pts, tans)
+
+    /// Whether the capture has ground-truth strands.
+    pub fn has_strands(&self) -> bool {
+        self.capture.gt_strands.is_some()
+    }
+
+    fn gt(&self, raw: &Bvh) -> Result<Option<&GroundTruth>, ReconError> {
+        if self.gt.get().is_none() {
+            let _ = self.gt.set(GroundTruth::load(self.capture, raw)?);
+        }
+        Ok(self.gt.get().and_then(Option::as_ref))
+    }
+
+    /// The maps against `gt/orientation` (`None` when no view has one).
+    pub fn orient2d(&self, maps: &[OrientationMap]) -> Result<Option<OrientationError>, ReconError> {
+        let mut errs = Vec::new();
+        let mut have_gt = false;
+        for (v, map) in self.capture.views.iter().zip(maps) {
+            let Some(g) = &v.gt_orientation else { continue };
+            have_gt = true;
+            let gt = OrientationMap::load_exr(g)?;
+            if (gt.width, gt.height) == (map.width, map.height) {
+                errs.extend(orientation_errors(map, &gt));
+            }
+        }
+        Ok(have_gt.then(|| summarize_errors(errs)))
+    }
+
+    /// The oriented 3D points.
+    pub fn points(&self, raw: &Bvh, p: &OrientedPoints) -> Result<Option<PointsScore>, ReconError> {
+        Ok(self.gt(raw)?.map(|g| {
+            score_points(&p.positions, &p.directions, &g.index, &g.surface, MATCH_DIST, MATCH_ANGLE_DEG.to_radians())
+        }))
+    }
+
+    /// The directed points.
+    pub fn directions(&self, raw: &Bvh, p: &OrientedPoints) -> Result<Option<DirectionScore>, ReconError> {
+        Ok(self
+            .gt(raw)?
+            .map(|g| score_directions(&p.positions, &p.directions, &g.index, MATCH_DIST, MATCH_ANGLE_DEG.to_radians())))
+    }
+
+    /// Ringlet axes (where the cameras saw the hair) of the curl `c`.
+    pub fn axes(&self, raw: &Bvh, axes: &OrientedPoints, c: &Curl) -> Result<Option<AxisScore>, ReconError> {
+        Ok(self.gt(raw)?.map(|g| {
+            let gt_ax = gt_axes(&g.strands, c.period / c.pitch_angle().cos(), 0.001);
+            score_axes(&axes.positions, &axes.directions, &gt_ax, MATCH_DIST)
+        }))
+    }
+
+    /// The strand metric (`None` without ground truth or when a set is empty).
+    pub fn strands(&self, raw: &Bvh, set: &StrandSet) -> Result<Option<MetricReport>, ReconError> {
+        Ok(self.gt(raw)?.and_then(|g| evaluate(set, &g.strands, &MetricOptions::default()).ok()))
+    }
 }
 
 /// Precision and coverage of oriented points.

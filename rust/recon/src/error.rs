@@ -1,0 +1,101 @@
+//! Why a reconstruction stopped: one error type for the runner, wrapping each stage's own.
+
+use std::path::PathBuf;
+
+use hairrecon_core::formats::FormatError;
+use thiserror::Error;
+
+use crate::config::{ConfigError, Stage};
+use crate::dr::DrError;
+use crate::hull::HullError;
+use crate::orient2d::Orient2dError;
+use crate::parting::PartingError;
+use crate::points3d::PointsError;
+use crate::progress::Cancelled;
+use crate::roots::ScalpError;
+
+/// Why a reconstruction stopped.
+#[derive(Debug, Error)]
+pub enum ReconError {
+    /// The user cancelled the run; nothing of the unfinished stage was written.
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+    /// A file could not be read or written.
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    /// An image or orientation map could not be read or written.
+    #[error(transparent)]
+    Orient2d(#[from] Orient2dError),
+    /// Oriented points could not be saved or loaded.
+    #[error(transparent)]
+    Points(#[from] PointsError),
+    /// The configuration is invalid.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The output folder cannot be created.
+    #[error("cannot create the output folder {path}: {source}")]
+    OutDir { path: PathBuf, source: std::io::Error },
+    /// A file in the output folder cannot be written or removed.
+    #[error("cannot write {path}: {source}")]
+    Write { path: PathBuf, source: std::io::Error },
+    /// `--from STAGE` needs an output that an earlier stage did not leave in the folder.
+    #[error(
+        "--from {from}: {path} is missing; it is written by the {needs} stage, so run from there (--from {needs}) \
+         or the whole pipeline"
+    )]
+    MissingStageOutput { from: Stage, needs: Stage, path: PathBuf },
+    /// `--from` lies after `--stop-after`.
+    #[error("--from {from} comes after --stop-after {stop}: nothing to run")]
+    EmptyPlan { from: Stage, stop: Stage },
+    /// The capture has no scalp mesh.
+    #[error("the capture {dir} has no scalp mesh; add \"scalp_mesh\" to its capture.json")]
+    NoScalp { dir: PathBuf },
+    /// The scalp mesh is unusable.
+    #[error("the scalp mesh {path} cannot be used: {source}")]
+    Scalp { path: PathBuf, source: ScalpError },
+    /// The DR stage failed.
+    #[error("strand optimization (DR): {0}")]
+    Dr(DrError),
+    /// The visual hull failed.
+    #[error("the visual hull: {0}")]
+    Hull(HullError),
+    /// The partings stage failed.
+    #[error("the partings (--no-parting skips them): {0}")]
+    Parting(PartingError),
+    /// The curl grids would be far too large for a head.
+    #[error(
+        "the curl stage's grids would exceed 64 million cells: the raw mesh or the points span far more than a \
+         head (check the raw mesh's units, metres expected), or run with --curl off"
+    )]
+    CurlGrid,
+    /// The curled strands are invalid.
+    #[error("the curled strands: {0}")]
+    Curl(#[from] hairrecon_core::strands::StrandError),
+}
+
+impl From<HullError> for ReconError {
+    fn from(e: HullError) -> Self {
+        match e {
+            HullError::Cancelled(c) => ReconError::Cancelled(c),
+            e => ReconError::Hull(e),
+        }
+    }
+}
+
+impl From<PartingError> for ReconError {
+    fn from(e: PartingError) -> Self {
+        match e {
+            PartingError::Cancelled(c) => ReconError::Cancelled(c),
+            e => ReconError::Parting(e),
+        }
+    }
+}
+
+impl From<DrError> for ReconError {
+    fn from(e: DrError) -> Self {
+        match e {
+            DrError::Cancelled(c) => ReconError::Cancelled(c),
+            e => ReconError::Dr(e),
+        }
+    }
+}

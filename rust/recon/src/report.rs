@@ -1,0 +1,135 @@
+//! What a run reports: `OUT/report.json`, one typed record per stage (wall time, the process's
+//! peak memory at its end, the stage's own statistics) and, when the capture has ground truth,
+//! the scores that [`crate::eval`] gave each stage's output.
+//!
+//! A run resumed with `--from STAGE` keeps the records of the stages before STAGE from the report
+//! it finds in the folder, so the report always describes every stage of the result.
+
+use std::path::Path;
+
+use hairrecon_core::metric::MetricReport;
+use serde::{Deserialize, Serialize};
+
+use crate::config::{Stage, GIT_COMMIT, VERSION};
+use crate::eval::{AxisScore, DirectionScore, PointsScore};
+use crate::orient2d::OrientationError;
+
+/// One stage of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageRecord {
+    pub stage: Stage,
+    /// Wall time of the stage, seconds.
+    pub seconds: f64,
+    /// The process's peak resident memory at the end of the stage, MiB (a running maximum: the
+    /// first stage whose value jumps is the one that needed the memory; `None` off Linux).
+    pub peak_rss_mb: Option<f64>,
+    /// The stage's own statistics (its typed stats struct, serialized).
+    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
+    pub stats: serde_json::Value,
+}
+
+/// Scores against the capture's ground truth (all `None` without it).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Scores {
+    /// The 2D orientation maps against `gt/orientation`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orient2d: Option<OrientationError>,
+    /// The oriented 3D points: precision and coverage at 2 mm/20°.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orient3d: Option<PointsScore>,
+    /// The directed points: agreement with the ground truth's direction.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub direction: Option<DirectionScore>,
+    /// With curls: the ringlet axes against the ground truth's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axes: Option<AxisScore>,
+    /// The strand metric of the guides and children before DR.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub init_guides: Option<MetricReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub init_strands: Option<MetricReport>,
+    /// The same after DR.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dr_guides: Option<MetricReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dr_strands: Option<MetricReport>,
+}
+
+/// `OUT/report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub hairrecon_version: String,
+    pub git_commit: String,
+    /// The capture folder.
+    pub capture: String,
+    /// The stages of the result, in order.
+    pub stages: Vec<StageRecord>,
+    pub scores: Scores,
+    /// Warnings a user should read (e.g. the visual hull's trim was skipped).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+impl Report {
+    pub fn new(capture: &Path) -> Self {
+        Self {
+            hairrecon_version: VERSION.into(),
+            git_commit: GIT_COMMIT.into(),
+            capture: capture.display().to_string(),
+            stages: Vec::new(),
+            scores: Scores::default(),
+            warnings: Vec::new(),
+        }
+    }
+
+    /// The report of an earlier run in `out_dir` cut to the stages before `from` (their scores
+    /// kept), or a new one when there is none.
+    pub fn resumed(capture: &Path, out_dir: &Path, from: Stage) -> Self {
+        let mut r = Self::new(capture);
+        let old: Option<Report> =
+            std::fs::read(out_dir.join("report.json")).ok().and_then(|b| serde_json::from_slice(&b).ok());
+        if let Some(old) = old {
+            r.stages = old.stages.into_iter().filter(|s| s.stage < from).collect();
+            let s = old.scores;
+            let keep = |st: Stage| st < from;
+            r.scores = Scores {
+                orient2d: s.orient2d.filter(|_| keep(Stage::Orient2d)),
+                orient3d: s.orient3d.filter(|_| keep(Stage::Orient3d)),
+                direction: s.direction.filter(|_| keep(Stage::Direction)),
+                axes: s.axes.filter(|_| keep(Stage::Init)),
+                init_guides: s.init_guides.filter(|_| keep(Stage::Init)),
+                init_strands: s.init_strands.filter(|_| keep(Stage::Init)),
+                dr_guides: None,
+                dr_strands: None,
+            };
+        }
+        r
+    }
+
+    /// Records a finished stage.
+    pub fn record(&mut self, stage: Stage, seconds: f64, stats: serde_json::Value) {
+        self.stages.retain(|s| s.stage != stage);
+        let peak_rss_mb = peak_rss_bytes().map(|b| (b as f64 / (1 << 20) as f64).round());
+        self.stages.push(StageRecord { stage, seconds, peak_rss_mb, stats });
+    }
+
+    /// (stage name, seconds) in order.
+    pub fn stage_times(&self) -> Vec<(String, f64)> {
+        self.stages.iter().map(|s| (s.stage.to_string(), s.seconds)).collect()
+    }
+
+    /// Writes `report.json` atomically.
+    pub fn save(&self, path: &Path) -> Result<(), hairrecon_core::FormatError> {
+        let text = serde_json::to_string_pretty(self).unwrap_or_default();
+        hairrecon_core::formats::atomic_write(path, |w| Ok(std::io::Write::write_all(w, text.as_bytes())?))
+    }
+}
+
+/// The process's peak resident memory so far in bytes (Linux `VmHWM`; `None` elsewhere).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}

@@ -1,0 +1,209 @@
+//! The runner of `hairrecon reconstruct`: the stages of [`crate::stages`] in order, each output
+//! saved as it is made, evaluation ([`crate::eval`]) beside the run when the capture has ground
+//! truth, and a report ([`crate::report`]).
+//!
+//! `--from STAGE` reloads what an earlier run saved in the same folder for the stages before
+//! STAGE; `--stop-after STAGE` stops there. Every run writes `config.json` (the whole
+//! configuration) first and `report.json` last. Outputs of the stages a run makes again are
+//! removed at its start, so that nothing of an earlier run can pass for this one's.
+//!
+//! Cancellation: stages check `progress` between views, chunks, solver iterations and DR steps;
+//! a cancelled run returns [`ReconError::Cancelled`] and writes no result (`strands.hair`).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use hairrecon_core::capture::Capture;
+use hairrecon_core::formats::write_strands;
+use serde::Serialize;
+
+use crate::config::{ConfigFile, ReconstructConfig, Stage};
+use crate::error::ReconError;
+use crate::eval::Evaluator;
+use crate::progress::Progress;
+use crate::report::Report;
+use crate::stages::direction::DirectionOut;
+use crate::stages::init::InitOut;
+use crate::stages::orient2d::Orient2dOut;
+use crate::stages::orient3d::Orient3dOut;
+use crate::stages::partings::PartingsOut;
+use crate::stages::{self, mkdir, remove, Context};
+
+/// Which stages a run makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Plan {
+    /// The first stage run; the earlier ones are reloaded from the output folder.
+    pub from: Stage,
+    /// The last stage run (`None`: all; without DR in the config, init is the last).
+    pub stop_after: Option<Stage>,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Self { from: Stage::Orient2d, stop_after: None }
+    }
+}
+
+/// What a run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReconstructOutput {
+    /// The final child strands (`strands.hair`), when the run reached the init stage.
+    pub strands: Option<PathBuf>,
+    /// The final guide strands (`guides.hair`).
+    pub guides: Option<PathBuf>,
+    /// The strands before DR (`init_strands.hair`, `init_guides.hair`).
+    pub init_strands: Option<PathBuf>,
+    pub init_guides: Option<PathBuf>,
+    /// The loss curve (`loss.csv`; the plot is `loss.png` beside it), when DR ran.
+    pub loss_csv: Option<PathBuf>,
+    /// What `report.json` holds.
+    pub report: Report,
+}
+
+/// Files each stage writes (besides `orient2d/<view>.exr|png`, overwritten when it runs again).
+const OUTPUTS: [(Stage, &[&str]); 6] = [
+    (Stage::Orient2d, &["orient2d/maps.bin"]),
+    (Stage::Orient3d, &["points3d.ply"]),
+    (Stage::Partings, &["partings.ply", "partings.json"]),
+    (Stage::Direction, &["points_directed.ply"]),
+    (Stage::Init, &["roots.ply", "flow.bin", "points_axes.ply", "init_guides.hair", "init_strands.hair", "init.json"]),
+    (Stage::Dr, &["loss.csv", "loss.png", "guides.hair", "strands.hair"]),
+];
+
+fn stats<T: Serialize>(s: &T) -> serde_json::Value {
+    serde_json::to_value(s).unwrap_or(serde_json::Value::Null)
+}
+
+/// Runs the plan's stages on the capture into `out_dir` (see the module doc).
+pub fn reconstruct(
+    capture: &Capture,
+    out_dir: &Path,
+    cfg: &ReconstructConfig,
+    plan: Plan,
+    progress: &dyn Progress,
+) -> Result<ReconstructOutput, ReconError> {
+    cfg.validate()?;
+    let stop = plan.stop_after.unwrap_or(Stage::Dr);
+    let last = if cfg.dr { stop } else { stop.min(Stage::Init) };
+    let from = plan.from;
+    if from > last {
+        return Err(ReconError::EmptyPlan { from, stop: last });
+    }
+    mkdir(out_dir)?;
+    for (_, files) in OUTPUTS.iter().filter(|(s, _)| *s >= from) {
+        files.iter().try_for_each(|f| remove(&out_dir.join(f)))?;
+    }
+    ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
+    let ctx = Context::new(capture, out_dir, progress);
+    let eval = Evaluator::new(capture);
+    let mut report = Report::resumed(&capture.dir, out_dir, from);
+    let runs = |s: Stage| from <= s && s <= last;
+    let mut out = ReconstructOutput {
+        strands: None,
+        guides: None,
+        init_strands: None,
+        init_guides: None,
+        loss_csv: None,
+        report: report.clone(),
+    };
+    let finish = |mut out: ReconstructOutput, report: Report| -> Result<ReconstructOutput, ReconError> {
+        report.save(&out_dir.join("report.json"))?;
+        out.report = report;
+        Ok(out)
+    };
+
+    let t = Instant::now();
+    let maps = if runs(Stage::Orient2d) {
+        let o = stages::orient2d::run(&ctx, cfg)?;
+        o.save(&ctx, cfg.write_pictures)?;
+        report.record(Stage::Orient2d, t.elapsed().as_secs_f64(), serde_json::Value::Null);
+        report.scores.orient2d = eval.orient2d(&o.maps)?;
+        o.maps
+    } else {
+        Orient2dOut::load(&ctx, from)?.maps
+    };
+    if last == Stage::Orient2d {
+        return finish(out, report);
+    }
+
+    let t = Instant::now();
+    let points = if runs(Stage::Orient3d) {
+        let o = stages::orient3d::run(&ctx, cfg, &maps)?;
+        o.save(&ctx)?;
+        report.record(Stage::Orient3d, t.elapsed().as_secs_f64(), serde_json::Value::Null);
+        report.scores.orient3d = eval.points(ctx.raw()?, &o.points)?;
+        Some(o.points)
+    } else if runs(Stage::Direction) {
+        Some(Orient3dOut::load(&ctx, from)?.points)
+    } else {
+        None
+    };
+    if last == Stage::Orient3d {
+        return finish(out, report);
+    }
+
+    let t = Instant::now();
+    let scalp = if runs(Stage::Partings) {
+        let o = stages::partings::run(&ctx, cfg)?;
+        o.save(&ctx)?;
+        report.record(Stage::Partings, t.elapsed().as_secs_f64(), stats(&o.stats));
+        o.scalp
+    } else {
+        PartingsOut::load(&ctx, from, &cfg.parting)?.scalp
+    };
+    if last == Stage::Partings {
+        return finish(out, report);
+    }
+
+    let t = Instant::now();
+    let directed = match points {
+        Some(points) => {
+            let o = stages::direction::run(&ctx, cfg, &points, &scalp)?;
+            o.save(&ctx)?;
+            report.record(Stage::Direction, t.elapsed().as_secs_f64(), stats(&o.stats));
+            report.scores.direction = eval.directions(ctx.raw()?, &o.directed)?;
+            o.directed
+        }
+        None if runs(Stage::Init) => DirectionOut::load(&ctx, from)?.directed,
+        None => Default::default(),
+    };
+    if last == Stage::Direction {
+        return finish(out, report);
+    }
+
+    let t = Instant::now();
+    let init = if runs(Stage::Init) {
+        let o = stages::init::run(&ctx, cfg, &directed, &scalp, &maps)?;
+        o.save(&ctx)?;
+        report.record(Stage::Init, t.elapsed().as_secs_f64(), stats(&o.stats));
+        report.warnings.extend(o.stats.hull_warning.clone());
+        if let (Some(axes), Some(c)) = (&o.seen_axes, o.info.curl) {
+            report.scores.axes = eval.axes(ctx.raw()?, axes, &c)?;
+        }
+        progress.update("metrics", 0.0, "scoring strands");
+        report.scores.init_guides = eval.strands(ctx.raw()?, &o.guides)?;
+        report.scores.init_strands = eval.strands(ctx.raw()?, &o.children)?;
+        o
+    } else {
+        InitOut::load(&ctx, from)?
+    };
+    drop(directed);
+    (out.init_guides, out.init_strands) = (Some(ctx.path("init_guides.hair")), Some(ctx.path("init_strands.hair")));
+    (out.guides, out.strands) = (Some(ctx.path("guides.hair")), Some(ctx.path("strands.hair")));
+    if last == Stage::Init {
+        write_strands(ctx.path("guides.hair"), &init.guides)?;
+        write_strands(ctx.path("strands.hair"), &init.children)?;
+        return finish(out, report);
+    }
+
+    let t = Instant::now();
+    let o = stages::dr::run(&ctx, cfg, &init, &maps, &scalp)?;
+    o.save(&ctx)?;
+    report.record(Stage::Dr, t.elapsed().as_secs_f64(), stats(&o.stats));
+    progress.update("metrics", 0.5, "scoring strands");
+    report.scores.dr_guides = eval.strands(ctx.raw()?, &o.guides)?;
+    report.scores.dr_strands = eval.strands(ctx.raw()?, &o.children)?;
+    out.loss_csv = Some(ctx.path("loss.csv"));
+    progress.update("dr", 1.0, "");
+    finish(out, report)
+}

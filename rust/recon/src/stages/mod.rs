@@ -1,0 +1,103 @@
+//! The stages of `hairrecon reconstruct`, one module each: a typed output that saves itself into
+//! the output folder and reloads itself from there (so that a run can resume from any stage), and
+//! a `run` function from the earlier stages' outputs and the stage's part of the
+//! [`crate::config::ReconstructConfig`]. The runner ([`crate::runner`]) calls them in order.
+//!
+//! Data flows one way: capture → [`orient2d`] (2D orientation maps) → [`orient3d`] (oriented 3D
+//! points) → [`partings`] (the scalp, with the skin the views see) → [`direction`] (directed
+//! points) → [`init`] (initial guides and children) → [`dr`] (strands optimized by differentiable
+//! rendering).
+
+pub mod direction;
+pub mod dr;
+pub mod init;
+pub mod orient2d;
+pub mod orient3d;
+pub mod partings;
+
+use std::cell::OnceCell;
+use std::path::{Path, PathBuf};
+
+use hairrecon_core::capture::Capture;
+use hairrecon_core::formats::read_mesh;
+use hairrecon_core::Bvh;
+
+use crate::config::Stage;
+use crate::error::ReconError;
+use crate::progress::Progress;
+
+/// What every stage sees: the capture, the output folder, progress, and the meshes (each read
+/// once, when a stage first needs it).
+pub struct Context<'a> {
+    pub capture: &'a Capture,
+    pub out_dir: &'a Path,
+    pub progress: &'a dyn Progress,
+    raw: OnceCell<Bvh>,
+    inner: OnceCell<Bvh>,
+}
+
+impl std::fmt::Debug for Context<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Context").field("capture", &self.capture.dir).field("out_dir", &self.out_dir).finish()
+    }
+}
+
+impl<'a> Context<'a> {
+    pub fn new(capture: &'a Capture, out_dir: &'a Path, progress: &'a dyn Progress) -> Self {
+        Self { capture, out_dir, progress, raw: OnceCell::new(), inner: OnceCell::new() }
+    }
+
+    /// A file in the output folder.
+    pub fn path(&self, name: &str) -> PathBuf {
+        self.out_dir.join(name)
+    }
+
+    /// The raw mesh (the hair's outer surface), with its BVH.
+    pub fn raw(&self) -> Result<&Bvh, ReconError> {
+        if self.raw.get().is_none() {
+            let _ = self.raw.set(Bvh::new(read_mesh(&self.capture.raw_mesh)?));
+        }
+        Ok(self.raw.get().expect("set above"))
+    }
+
+    /// The scalp mesh's path.
+    pub fn scalp_path(&self) -> Result<&Path, ReconError> {
+        self.capture.scalp_mesh.as_deref().ok_or_else(|| ReconError::NoScalp { dir: self.capture.dir.clone() })
+    }
+
+    /// The head (else the scalp): what the partings' views and the flow see around, what hides
+    /// strands in DR, and the body the strands must stay out of.
+    pub fn inner(&self) -> Result<&Bvh, ReconError> {
+        if self.inner.get().is_none() {
+            let mesh = match &self.capture.head_mesh {
+                Some(h) => read_mesh(h)?,
+                None => read_mesh(self.scalp_path()?)?,
+            };
+            let _ = self.inner.set(Bvh::new(mesh));
+        }
+        Ok(self.inner.get().expect("set above"))
+    }
+}
+
+/// A saved output that `--from later` needs, or the error that names the stage to run first.
+pub(crate) fn need(ctx: &Context<'_>, from: Stage, made_by: Stage, name: &str) -> Result<PathBuf, ReconError> {
+    let path = ctx.path(name);
+    if path.exists() {
+        Ok(path)
+    } else {
+        Err(ReconError::MissingStageOutput { from, needs: made_by, path })
+    }
+}
+
+/// Removes a file of an earlier run (absent is fine).
+pub(crate) fn remove(path: &Path) -> Result<(), ReconError> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(ReconError::Write { path: path.into(), source: e }),
+        _ => Ok(()),
+    }
+}
+
+/// Creates a folder.
+pub(crate) fn mkdir(p: &Path) -> Result<(), ReconError> {
+    std::fs::create_dir_all(p).map_err(|source| ReconError::OutDir { path: p.into(), source })
+}
