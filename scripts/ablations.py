@@ -3,19 +3,16 @@
 Rows (Dr.Hair's supplement, Table 3; ``docs/method.md``):
 
 - ``full``: ``hairrecon reconstruct CAPTURE --out OUT/full`` (or ``--full DIR``, a finished whole run);
-- ``no_dr`` (w/o DR): that run's strands before DR (``init_strands`` in its ``metrics.json``);
+- ``no_dr`` (w/o DR): that run's strands before DR (``init_strands`` in its ``report.json``);
 - ``no_guide_opt``, ``no_reparam``, ``no_n`` (w/o guide opt., w/o reparam., w/o N): DR alone, from the
-  full run's init, with one switch off: ``dr_on_capture CAPTURE INIT OUT/ROW eval=0 KEY=0`` (the example
-  binary of ``hairrecon-recon``; the init is deterministic, so these rows start from the same strands as
-  ``full``), scored with ``hairrecon eval --json``; with ``keep_curls=1`` too when the full run's DR kept
-  curls (``dr_keeps_curls`` in its ``metrics.json``) and ``quiet=1`` (its ``partings.ply`` linked into the
-  init) when it quieted the orientation around the partings (``parting_pixels_quieted``), so the row
-  differs from ``full`` by its switch only;
+  full run's saved stages, with one switch off: ``hairrecon reconstruct CAPTURE --out OUT/ROW --config
+  FULL/config.json --from dr --no-guide-opt`` (the full run's orientation maps, partings and init linked
+  into ``OUT/ROW``), so the row differs from ``full`` by its switch only;
 - ``no_strand_init``, ``no_global_opt`` (w/o strand init., w/o global opt.): whole runs with
   ``--no-strand-init`` / ``--no-global-opt`` (they change the init).
 
 Each row's output folder ``OUT/ROW`` is kept; a row that has finished (its ``strands.hair`` from DR, or
-its ``metrics.json`` with scores after DR) is scored, not run again, so an interrupted table goes on
+its ``report.json`` with scores after DR) is scored, not run again, so an interrupted table goes on
 where it stopped (a row finished by an earlier call keeps its time only if ``OUT/ablations.json`` has it). The table (markdown) goes to stdout and to
 ``OUT/ablations.md``, the figures to ``OUT/ablations.json``: undirected P / R / F1 at 2 mm/20°, F1 at
 1 mm/10° and 3 mm/30°, directed F1 at 2 mm/20°, and each row's wall time and peak memory (of the
@@ -49,8 +46,11 @@ LABELS = {
     "no_strand_init": "w/o strand init.",
     "no_global_opt": "w/o global opt.",
 }
-# DR-only rows: the dr_on_capture key switched off.
-DR_KEYS = {"no_guide_opt": "guide_opt", "no_reparam": "reparam", "no_n": "n"}
+# DR-only rows: the reconstruct flag that switches their part of DR off.
+DR_KEYS = {"no_guide_opt": "--no-guide-opt", "no_reparam": "--no-reparam", "no_n": "--no-neighbor-reparam"}
+# What a DR-only row links from the full run: the stages before DR, as `--from dr` reloads them.
+DR_INPUTS = ["config.json", "report.json", "orient2d", "partings.ply", "partings.json", "init_guides.hair",
+             "init_strands.hair", "init.json"]
 # Whole-run rows: the reconstruct flag.
 WHOLE_FLAGS = {"full": [], "no_strand_init": ["--no-strand-init"], "no_global_opt": ["--no-global-opt"]}
 
@@ -59,17 +59,15 @@ class AblationError(RuntimeError):
     pass
 
 
-def dr_row_keys(name: str, keep_curls: bool, quiet: bool = False) -> list:
-    """``dr_on_capture``'s keys for a DR-only row: its switch off, the full run's curl options when its
-    DR kept curls, and the orientation quiet around the partings when the full run's DR quieted it
-    (the row then differs from ``full`` by the switch only)."""
-    return (["eval=0", f"{DR_KEYS[name]}=0"] + (["keep_curls=1"] if keep_curls else [])
-            + (["quiet=1"] if quiet else []))
+def dr_row_args(name: str, full_dir: Path) -> list:
+    """``hairrecon reconstruct``'s arguments (after the capture) for a DR-only row: the full run's
+    configuration, DR alone, with the row's switch off."""
+    return ["--config", full_dir / "config.json", "--from", "dr", DR_KEYS[name]]
 
 
 def scores_row(report: dict) -> dict:
-    """The table's figures from a metric report (``hairrecon eval --json`` or an entry of
-    ``metrics.json``): ``{"P2","R2","F2","F1mm","F3mm","D2"}`` in percent."""
+    """The table's figures from a metric report (``hairrecon eval --json`` or a score of
+    ``report.json``): ``{"P2","R2","F2","F1mm","F3mm","D2"}`` in percent."""
 
     def at(mode: str, dist: float) -> dict:
         for s in report.get(mode, []):
@@ -137,38 +135,21 @@ def run_measured(cmd: list, log: Path) -> tuple[float, float]:
     return secs, usage.ru_maxrss / 1024.0
 
 
-def _finished(run_dir: Path) -> bool:
-    """A whole run that got through DR: its metrics.json has the scores after DR."""
+def _scores(run_dir: Path) -> dict:
+    """The scores of a run's ``report.json`` (empty when it has none)."""
     try:
-        return "dr_strands" in json.loads((run_dir / "metrics.json").read_text())
-    except (OSError, ValueError):
-        return False
+        return json.loads((run_dir / "report.json").read_text())["scores"]
+    except (OSError, ValueError, KeyError):
+        return {}
 
 
-def evaluate(exe: Path, pred: Path, gt: Path) -> dict:
-    """``hairrecon eval --json`` of ``pred`` against ``gt``."""
-    print(f"ablations: scoring {pred}", flush=True)
-    ev = subprocess.run([str(exe), "eval", "--pred", str(pred), "--gt", str(gt), "--json"],
-                        capture_output=True, text=True)
-    if ev.returncode != 0:
-        raise AblationError(f"hairrecon eval failed on {pred}: {ev.stderr.strip()}")
-    return json.loads(ev.stdout)
-
-
-def find_binaries(args) -> tuple[Path, Path]:
+def find_binary(args) -> Path:
     exe = Path(args.hairrecon_bin) if args.hairrecon_bin else REPO / "target" / "release" / "hairrecon"
-    dr = REPO / "target" / "release" / "examples" / "dr_on_capture"
     if args.build:
-        subprocess.run(
-            ["cargo", "build", "--release", "-p", "hairrecon-cli", "-p", "hairrecon-recon", "--example", "dr_on_capture"],
-            cwd=REPO,
-            check=True,
-        )
-    for b in (exe, dr):
-        if not b.is_file():
-            raise AblationError(f"no {b}; build it with: cargo build --release -p hairrecon-cli -p hairrecon-recon "
-                                "--example dr_on_capture (or pass --build)")
-    return exe, dr
+        subprocess.run(["cargo", "build", "--release", "-p", "hairrecon-cli"], cwd=REPO, check=True)
+    if not exe.is_file():
+        raise AblationError(f"no {exe}; build it with: cargo build --release -p hairrecon-cli (or pass --build)")
+    return exe
 
 
 def main(argv=None) -> int:
@@ -178,7 +159,7 @@ def main(argv=None) -> int:
     p.add_argument("--full", type=Path, help="a finished `hairrecon reconstruct CAPTURE --out DIR` to use as the full row")
     p.add_argument("--rows", nargs="+", default=ROWS, choices=ROWS)
     p.add_argument("--hairrecon-bin", help="the hairrecon binary (default: target/release/hairrecon)")
-    p.add_argument("--build", action="store_true", help="cargo build the two binaries first")
+    p.add_argument("--build", action="store_true", help="cargo build the hairrecon binary first")
     a = p.parse_args(argv)
     try:
         return run(a)
@@ -191,7 +172,7 @@ def run(a) -> int:
     gt = a.capture / "gt" / "strands.hair"
     if not gt.is_file():
         raise AblationError(f"{a.capture} has no ground truth ({gt}); ablations need a synthetic capture")
-    exe, dr_bin = find_binaries(a)
+    exe = find_binary(a)
     a.out.mkdir(parents=True, exist_ok=True)
     rows: dict = {}
     summary_path = a.out / "ablations.json"
@@ -206,20 +187,17 @@ def run(a) -> int:
     # The full run (needed by every DR row and by w/o DR).
     need_full = any(r in a.rows for r in ["full", "no_dr", *DR_KEYS])
     full_dir = a.full or a.out / "full"
-    if need_full and not (full_dir / "metrics.json").is_file():
+    if need_full and "dr_strands" not in _scores(full_dir):
         if a.full:
-            raise AblationError(f"--full {a.full} has no metrics.json: not a finished reconstruct run")
+            raise AblationError(f"--full {a.full} has no report.json with scores after DR: not a finished whole run "
+                                "(run it without --no-dr on a capture with ground truth)")
         full_dir.mkdir(parents=True, exist_ok=True)
         secs, peak = run_measured([exe, "reconstruct", a.capture, "--out", full_dir], a.out / "full.log")
         rows["full"] = {"seconds": secs, "peak_mb": peak}
-    keep_curls = quiet = False
     if need_full:
-        m = json.loads((full_dir / "metrics.json").read_text())
-        keep_curls = bool(m.get("dr_keeps_curls", False))
-        # The pipeline's DR quiets the orientation loss around the partings it found (session 38).
-        quiet = "parting_pixels_quieted" in m and (full_dir / "partings.ply").is_file()
+        m = _scores(full_dir)
         if "dr_strands" not in m:
-            raise AblationError(f"{full_dir}/metrics.json has no dr_strands: run the full method (without --no-dr)")
+            raise AblationError(f"{full_dir}/report.json has no dr_strands: run the full method (without --no-dr)")
         rows.setdefault("full", {})["scores"] = scores_row(m["dr_strands"])
         rows["no_dr"] = {"scores": scores_row(m["init_strands"])}
         save()
@@ -232,27 +210,20 @@ def run(a) -> int:
         prev = rows.get(name, {})
         secs, peak = prev.get("seconds"), prev.get("peak_mb")
         init_scores = None
-        if name in DR_KEYS:
-            if not (row_dir / "strands.hair").is_file():
-                init = a.out / "init"
-                init.mkdir(exist_ok=True)
-                for src, dst in [("init_guides.hair", "guides.hair"), ("init_strands.hair", "strands.hair"),
-                                 ("orient2d", "orient2d"), ("partings.ply", "partings.ply")]:
-                    link = init / dst
-                    if not (full_dir / src).exists():
-                        continue
-                    if not link.exists():
-                        link.symlink_to((full_dir / src).resolve())
-                secs, peak = run_measured([dr_bin, a.capture, init, row_dir, *dr_row_keys(name, keep_curls, quiet)],
-                                          a.out / f"{name}.log")
-            report = evaluate(exe, row_dir / "strands.hair", gt)
-        else:
-            if not _finished(row_dir):
-                secs, peak = run_measured([exe, "reconstruct", a.capture, "--out", row_dir, *WHOLE_FLAGS[name]],
-                                          a.out / f"{name}.log")
-            m = json.loads((row_dir / "metrics.json").read_text())
-            report, init_scores = m["dr_strands"], scores_row(m["init_strands"])
-        rows[name] = {"scores": scores_row(report), "seconds": secs, "peak_mb": peak}
+        if "dr_strands" not in _scores(row_dir):
+            if name in DR_KEYS:
+                for f in DR_INPUTS:
+                    link = row_dir / f
+                    if (full_dir / f).exists() and not link.exists():
+                        link.symlink_to((full_dir / f).resolve())
+                cmd = [exe, "reconstruct", a.capture, "--out", row_dir, *dr_row_args(name, full_dir)]
+            else:
+                cmd = [exe, "reconstruct", a.capture, "--out", row_dir, *WHOLE_FLAGS[name]]
+            secs, peak = run_measured(cmd, a.out / f"{name}.log")
+        m = _scores(row_dir)
+        if name not in DR_KEYS:
+            init_scores = scores_row(m["init_strands"])
+        rows[name] = {"scores": scores_row(m["dr_strands"]), "seconds": secs, "peak_mb": peak}
         if init_scores is not None:
             rows[name]["init_scores"] = init_scores
         save()

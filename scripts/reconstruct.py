@@ -10,7 +10,7 @@ the .blend (Hair panel) or the overrides below, and writes into DIR:
     scene.blend         the scene with the hair Curves objects added
     strands.hair        the strands (children), world space, root to tip
     guides.hair         the guide strands
-    summary.json        objects, strand counts, root distances, stage times, metrics (with ground truth)
+    summary.json        objects, strand counts, root distances, stage times, the run's report (scores with ground truth)
                         (before DR: "init_strands"; after: "dr_strands")
     render.png          with --render: a Cycles picture of the result from a scene camera (with
                         --render-before and --render-gt, the strands before DR and the ground truth
@@ -443,7 +443,7 @@ def run(a) -> dict:
     last = getattr(sys.modules.get(f"{package}.operators"), "LAST_SUMMARY", {}) or {}
     summary = {"blend": bpy.data.filepath, "objects": [o.name for o in hair],
                "seconds": last.get("seconds"), "stage_times": last.get("stage_times", []),
-               "metrics": last.get("metrics", {})}
+               "report": last.get("report", {})}
     for o in hair:
         key = "guides" if o.name.endswith("Guides") else "strands"
         path = out / f"{key}.hair"

@@ -278,7 +278,7 @@ class Session:
                     first.select_set(True)
                     context.view_layer.objects.active = first
             summary["stage_times"] = list(result.get("stage_times", []))
-            summary["metrics"] = dict(result.get("metrics", {}) or {})
+            summary["report"] = dict(result.get("report", {}) or {})
             return summary
         except BaseException:
             created.remove()

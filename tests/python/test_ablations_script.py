@@ -10,7 +10,7 @@ import ablations  # noqa: E402
 
 
 def report(shift: float) -> dict:
-    """A metric report shaped like `hairrecon eval --json` (and metrics.json's entries), with figures
+    """A metric report shaped like `hairrecon eval --json` (and report.json's scores), with figures
     that differ per threshold, mode and measure so that a wrong pick shows."""
 
     def scores(base):
@@ -49,8 +49,11 @@ def test_table_keeps_the_supplements_order_and_marks_the_init():
     assert "**42.5** (before DR 32.5)" in lines[-1] and lines[-1].endswith("| 1 min 1 s |")
 
 
-def test_dr_rows_switch_one_key_off_and_keep_the_full_runs_curl_options():
-    assert ablations.dr_row_keys("no_n", False) == ["eval=0", "n=0"]
-    assert ablations.dr_row_keys("no_reparam", True) == ["eval=0", "reparam=0", "keep_curls=1"]
-    assert ablations.dr_row_keys("no_guide_opt", True)[1] == "guide_opt=0"
-    assert ablations.dr_row_keys("no_n", False, quiet=True) == ["eval=0", "n=0", "quiet=1"]
+def test_dr_rows_replay_the_full_runs_config_from_dr_with_one_switch_off():
+    full = Path("/runs/full")
+    assert ablations.dr_row_args("no_n", full) == ["--config", full / "config.json", "--from", "dr",
+                                                   "--no-neighbor-reparam"]
+    assert ablations.dr_row_args("no_reparam", full)[-1] == "--no-reparam"
+    assert ablations.dr_row_args("no_guide_opt", full)[-1] == "--no-guide-opt"
+    # The row links what `--from dr` reloads: the config, the maps, the partings and the init.
+    assert {"config.json", "orient2d", "partings.json", "init_strands.hair", "init.json"} <= set(ablations.DR_INPUTS)

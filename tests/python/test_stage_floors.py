@@ -2,7 +2,7 @@
 
 Runs ``hairrecon reconstruct CAPTURE --out DIR --stop-after init`` on the session's test capture (the
 ``test_capture`` fixture: straight, 2,000 strands, seed 0, 16 views of 256 px, 32 samples) and checks
-every stage's metric in ``DIR/metrics.json`` against a floor. The render and the pipeline are
+every stage's score in ``DIR/report.json`` against a floor. The render and the pipeline are
 deterministic, so the figures repeat exactly; each floor sits a few points under the measured value
 (measured 2026-11-21, same command) so that a real regression trips it and a harmless change does
 not:
@@ -59,7 +59,7 @@ def init_metrics(test_capture, tmp_path_factory):
     r = subprocess.run(cmd, capture_output=True, text=True)
     assert r.returncode == 0, f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}"
     print(r.stdout[-1500:])
-    return json.loads((out / "metrics.json").read_text())
+    return json.loads((out / "report.json").read_text())["scores"]
 
 
 def _f1(m: dict, kind: str, dist_mm: float) -> float:

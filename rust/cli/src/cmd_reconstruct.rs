@@ -250,14 +250,14 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
         std::env::set_var("RAYON_NUM_THREADS", t.to_string());
     }
     let cfg = config(&a)?;
-    if a.print_config {
-        println!("{}", serde_json::to_string_pretty(&ConfigFile::new(cfg))?);
-        return Ok(());
-    }
     let plan = Plan {
         from: a.from.as_deref().map(str::parse::<Stage>).transpose()?.unwrap_or(Stage::Orient2d),
         stop_after: a.stop_after.as_deref().map(str::parse::<Stage>).transpose()?,
     };
+    if a.print_config {
+        println!("{}", serde_json::to_string_pretty(&ConfigFile::new(cfg))?);
+        return Ok(());
+    }
     let capture = Capture::load(&a.capture)?;
     let log = (!std::io::stderr().is_terminal()).then(|| Mutex::new((String::new(), Instant::now())));
     let bars = Bars { current: Mutex::new(None), log, start: Instant::now() };

@@ -45,7 +45,7 @@ fn dr_flags_reach_the_options() {
     let flags = [
         "--out",
         "unused-out",
-        "--print-options",
+        "--print-config",
         "--no-guide-opt",
         "--no-reparam",
         "--no-neighbor-reparam",
@@ -64,49 +64,57 @@ fn dr_flags_reach_the_options() {
         "--seed",
         "9",
     ];
-    let text = ok(&run(&flags, &[cap]));
-    for want in [
-        "dr: true,",
-        "iterations_guides: 7,",
-        "iterations_children: 3,",
-        "lr: 0.004,",
-        "lambda: 5.0,",
-        "views_per_step: 6,",
-        "reparam: false,",
-        "neighbor_reparam: false,",
-        "guide_opt: false,",
-        "width_m: 0.0005",
-        "seed: 9,",
-    ] {
-        assert!(text.contains(want), "{want:?} not in\n{text}");
-    }
-    assert!(!out.exists(), "--print-options must not run anything");
-    // The defaults: DR on, every part of it on.
-    let text = ok(&run(&["--out", "unused-out", "--print-options"], &[cap]));
-    for want in ["dr: true,", "reparam: true,", "neighbor_reparam: true,", "guide_opt: true,", "stop_after: None,"] {
-        assert!(text.contains(want), "{want:?} not in\n{text}");
-    }
-    assert!(text.contains("curl: Auto,"), "{text}");
-    let text = ok(&run(&["--out", "unused-out", "--print-options", "--curl", "off"], &[cap]));
-    assert!(text.contains("curl: Off,"), "{text}");
-    let text = ok(&run(&["--out", "unused-out", "--print-options", "--curl", "6.5,22,-1"], &[cap]));
-    assert!(
-        text.contains("radius: 0.0065,") && text.contains("period: 0.022,") && text.contains("hand: -1.0,"),
-        "{text}"
+    let cfg = |args: &[&str]| -> serde_json::Value {
+        let v: serde_json::Value = serde_json::from_str(&ok(&run(args, &[cap]))).unwrap();
+        v["config"].clone()
+    };
+    let c = cfg(&flags);
+    let d = &c["dr_options"];
+    assert_eq!(c["dr"], true);
+    assert_eq!((d["iterations_guides"].as_u64(), d["iterations_children"].as_u64()), (Some(7), Some(3)));
+    assert_eq!(
+        (d["lr"].as_f64(), d["lambda"].as_f64(), d["views_per_step"].as_u64()),
+        (Some(0.004), Some(5.0), Some(6))
     );
-    let text = ok(&run(&["--out", "unused-out", "--print-options", "--no-dr", "--stop-after", "dr"], &[cap]));
-    assert!(text.contains("dr: false,") && text.contains("stop_after: Some(\n        Dr,"), "{text}");
+    assert_eq!((&d["reparam"], &d["neighbor_reparam"], &d["guide_opt"]), (&false.into(), &false.into(), &false.into()));
+    assert_eq!((d["width_m"].as_f64(), d["seed"].as_u64(), c["seed"].as_u64()), (Some(0.0005), Some(9), Some(9)));
+    assert!(!out.exists(), "--print-config must not run anything");
+    // The defaults: DR on, every part of it on.
+    let c = cfg(&["--out", "unused-out", "--print-config"]);
+    let d = &c["dr_options"];
+    assert!(c["dr"] == true && d["reparam"] == true && d["neighbor_reparam"] == true && d["guide_opt"] == true, "{c}");
+    assert_eq!(c["curl"], "Auto");
+    assert_eq!(cfg(&["--out", "unused-out", "--print-config", "--curl", "off"])["curl"], "Off");
+    let fixed = &cfg(&["--out", "unused-out", "--print-config", "--curl", "6.5,22,-1"])["curl"]["Fixed"];
+    assert_eq!(
+        (fixed["radius"].as_f64(), fixed["period"].as_f64(), fixed["hand"].as_f64()),
+        (Some(0.0065), Some(0.022), Some(-1.0))
+    );
+    assert_eq!(cfg(&["--out", "unused-out", "--print-config", "--no-dr", "--stop-after", "dr"])["dr"], false);
+    // --config starts from a file; the flags given override it.
+    let dir = tmp("config");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("c.json");
+    std::fs::write(&file, r#"{"guides": 77, "children": 88, "dr": false}"#).unwrap();
+    let c = cfg(&["--out", "unused-out", "--print-config", "--config", file.to_str().unwrap(), "--children", "99"]);
+    assert_eq!((c["guides"].as_u64(), c["children"].as_u64(), &c["dr"]), (Some(77), Some(99), &false.into()));
+    std::fs::write(&file, r#"{"guides": 77, "colour": 1}"#).unwrap();
+    let o = run(&["--out", "unused-out", "--print-config", "--config", file.to_str().unwrap()], &[cap]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(1) && err.contains("colour") && err.contains("c.json"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
     // Bad values: one line on stderr, exit code 1.
     for (flag, value, words) in [
         ("--dr-lr", "0", "--dr-lr must be a positive number"),
         ("--dr-views", "0", "--dr-views must be at least 1"),
         ("--dr-width-mm", "0", "--dr-width-mm must be a positive number"),
-        ("--stop-after", "paint", "use one of orient2d, orient3d, direction, init, dr"),
+        ("--stop-after", "paint", "use one of orient2d, orient3d, partings, direction, init, dr"),
+        ("--from", "paint", "use one of orient2d, orient3d, partings, direction, init, dr"),
         ("--curl", "tight", "give off, auto or RADIUS_MM,PERIOD_MM,HAND"),
         ("--curl", "6.5,22", "give three numbers"),
         ("--curl", "6.5,22,2", "give 1 (right) or -1 (left)"),
     ] {
-        let o = run(&["--out", "unused-out", "--print-options", flag, value], &[cap]);
+        let o = run(&["--out", "unused-out", "--print-config", flag, value], &[cap]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{flag} {value}: {err}");
         assert!(err.contains(words) && err.trim().lines().count() == 1, "{flag} {value}: {err}");
@@ -158,13 +166,14 @@ fn curl_auto_keeps_straight_hair_and_a_fixed_curl_makes_helices() {
     ok(&run(&[&small[..], &["--out", b.to_str().unwrap(), "--curl", "off"]].concat(), &[&cap]));
     ok(&run(&[&small[..], &["--out", c.to_str().unwrap(), "--curl", "6.5,22,1"]].concat(), &[&cap]));
     let read = |p: PathBuf| std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-    let metrics = |d: &Path| -> serde_json::Value { serde_json::from_slice(&read(d.join("metrics.json"))).unwrap() };
-    let (ma, mc) = (metrics(&a), metrics(&c));
-    let auto = &ma["curl_auto"];
+    let json = |p: PathBuf| -> serde_json::Value { serde_json::from_slice(&read(p)).unwrap() };
+    let init_stats = |d: &Path| json(d.join("report.json"))["stages"][4]["stats"].clone();
+    let auto = &init_stats(&a)["curl_auto"];
     assert!(auto["down_tangents"].as_f64().unwrap() > auto["down_right"].as_f64().unwrap(), "{auto}");
-    assert!(ma.get("curl").is_none() && !a.join("points_axes.ply").exists());
+    assert!(json(a.join("init.json"))["curl"].is_null() && !a.join("points_axes.ply").exists());
     assert!(read(a.join("strands.hair")) == read(b.join("strands.hair")), "auto changed straight hair");
-    assert!((mc["curl"]["radius_mm"].as_f64().unwrap() - 6.5).abs() < 1e-4, "{}", mc["curl"]);
+    let curl = &json(c.join("init.json"))["curl"];
+    assert!((curl["radius"].as_f64().unwrap() - 0.0065).abs() < 1e-7, "{curl}");
     assert!(c.join("points_axes.ply").exists());
     assert!(read(c.join("strands.hair")) != read(b.join("strands.hair")));
     let _ = std::fs::remove_dir_all(&dir);

@@ -16,8 +16,8 @@ use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{read_mesh, read_strands};
 use hairrecon_core::Bvh;
 use hairrecon_recon::dr::DrOptions;
-use hairrecon_recon::pipeline::{reconstruct, ReconError, ReconstructOptions};
 use hairrecon_recon::progress::{NoProgress, Progress};
+use hairrecon_recon::{reconstruct, Plan, ReconError, ReconstructConfig};
 
 fn capture(name: &str) -> Capture {
     let dir = std::env::temp_dir().join(format!("hairrecon-dr-{name}-{}", std::process::id()));
@@ -29,10 +29,10 @@ fn f1_2mm(m: &serde_json::Value, key: &str, mode: &str) -> f64 {
     m[key][mode][1]["f1"].as_f64().unwrap_or_else(|| panic!("no {key}/{mode} in {m:#}"))
 }
 
-fn options() -> ReconstructOptions {
+fn options() -> ReconstructConfig {
     // Every second pixel in the line MVS keeps the test fast (as in pipeline_synthetic.rs).
     let mvs = hairrecon_recon::points3d::LineMvsParams { stride: 2, ..Default::default() };
-    ReconstructOptions {
+    ReconstructConfig {
         guides: 400,
         children: 4000,
         mvs,
@@ -46,11 +46,11 @@ fn options() -> ReconstructOptions {
 fn dr_output_is_simulation_ready_and_better_than_init() {
     let cap = capture("full");
     let out_dir = cap.dir.join("out");
-    let out = reconstruct(&cap, &out_dir, &options(), &NoProgress).unwrap();
-    let m = &out.metrics;
-    println!("{:?}", out.stage_times);
-    println!("dr_stats {}", m["dr_stats"]);
-    assert_eq!(out.stage_times.last().unwrap().0, "dr");
+    let out = reconstruct(&cap, &out_dir, &options(), Plan::default(), &NoProgress).unwrap();
+    let m = &serde_json::to_value(&out.report.scores).unwrap();
+    println!("{:?}", out.report.stage_times());
+    println!("dr stats {}", out.report.stages.last().unwrap().stats);
+    assert_eq!(out.report.stage_times().last().unwrap().0, "dr");
     for f in ["strands.hair", "guides.hair", "init_strands.hair", "init_guides.hair", "loss.csv", "loss.png"] {
         assert!(out_dir.join(f).is_file(), "{f} missing");
     }
@@ -152,7 +152,7 @@ fn a_run_cancelled_during_dr_writes_no_strands() {
     opts.guides = 100;
     opts.children = 500;
     let progress = CancelInDr { steps: 3, flag: AtomicBool::new(false) };
-    let r = reconstruct(&cap, &out_dir, &opts, &progress);
+    let r = reconstruct(&cap, &out_dir, &opts, Plan::default(), &progress);
     assert!(matches!(r, Err(ReconError::Cancelled(_))), "{r:?}");
     for f in ["strands.hair", "guides.hair", "init_strands.hair", "init_guides.hair", "loss.csv", "loss.png"] {
         assert!(!out_dir.join(f).exists(), "{f} exists after a cancelled run");

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::{Curl, CurlOptions};
 
 /// A deterministic phase in [0, 2π) for strand `i`.
-fn phase(seed: u64, i: usize) -> f32 {
+pub(super) fn phase(seed: u64, i: usize) -> f32 {
     let mut z = seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -97,7 +97,7 @@ fn helix_about(c: &[Vec3], curl: &Curl, opts: &CurlOptions, phi0: f32) -> Vec<Ve
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::curl::test_util::{helix, CURL};
+    use crate::curl::test_util::CURL;
 
     #[test]
     fn sweep_makes_a_helix_of_the_curl_about_a_straight_strand() {

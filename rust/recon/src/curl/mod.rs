@@ -212,6 +212,7 @@ pub(crate) mod test_util {
 
 #[cfg(test)]
 mod tests {
+    use super::test_util::CURL;
     use super::*;
 
     #[test]

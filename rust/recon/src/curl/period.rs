@@ -198,6 +198,7 @@ fn first_min_and_max(c: &[f32], min_contrast: f32, start: usize) -> (Option<f32>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::curl::helix::phase;
 
     /// A hair surface seen from the cameras: a piece of a cylinder (radius 0.1 m about the z axis,
     /// facing +y) corrugated along z with `period` (amplitude 1.5 mm) in 10 mm wide clumps, each at

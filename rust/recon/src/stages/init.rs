@@ -43,8 +43,9 @@ pub struct InitStats {
     pub smooth: Option<SmoothStats>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub curl_auto: Option<CurlChoiceReport>,
-    /// Views of the visual hull (0: no trim).
-    pub hull_views: usize,
+    /// Views of the visual hull (`None`: no trim asked).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hull_views: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hull_trim: Option<TrimStats>,
     /// Set when the hull would have cut too much and the children were kept whole.
@@ -191,7 +192,7 @@ fn trim(
 ) -> Result<StrandSet, ReconError> {
     let hull = VisualHull::from_capture(ctx.capture, Some(ctx.inner()?), cfg.hull, "init", ctx.progress)?
         .map(|h| h.with_scalp(Some(scalp.bvh().clone())));
-    stats.hull_views = hull.as_ref().map_or(0, |h| h.num_views());
+    stats.hull_views = Some(hull.as_ref().map_or(0, |h| h.num_views()));
     Ok(match hull.as_ref().map(|h| h.trim_checked(&children)) {
         Some(Ok((set, trim))) => {
             stats.hull_trim = Some(trim);
