@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs every test of hairrecon on a fresh machine: sets up the environment first (scripts/setup_env.sh),
-# then formatting and lints, the Rust tests, and the Python tests (bpy + Cycles, headless), the
+# then formatting, the documentation's links and API docs, lints, the Rust tests, and the Python tests (bpy + Cycles, headless), the
 # extension's tests a second time with Blender 4.2 (bpy 4.2).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -9,6 +9,12 @@ bash scripts/setup_env.sh --blender42
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
+echo "== links in README.md, docs/ and research/; the README's results table against docs/results"
+.venv/bin/python scripts/check_links.py
+.venv/bin/python scripts/results_table.py --straight docs/results/paper_straight.json \
+  --curly docs/results/paper_curly.json --check README.md
+echo "== cargo doc (no warnings)"
+RUSTDOCFLAGS="-D warnings" cargo doc --quiet --workspace --no-deps
 echo "== cargo clippy (all targets, -D warnings)"
 cargo clippy --quiet --workspace --all-targets -- -D warnings
 echo "== cargo test (release profile; the Python module is tested from Python)"

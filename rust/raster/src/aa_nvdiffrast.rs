@@ -13,7 +13,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::antialias::{scatter_corners, AaOutput, NONE};
+use crate::aa_output::{scatter_corners, AaOutput, NONE};
 use crate::image::Image;
 use crate::rasterize::Buffers;
 use crate::screen::{crossing, Prim, Screen, SegmentGrads};

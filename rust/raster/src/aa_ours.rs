@@ -25,7 +25,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::antialias::{scatter_corners, AaOutput, N8, NONE};
+use crate::aa_output::{scatter_corners, AaOutput, N8, NONE};
 use crate::image::Image;
 use crate::rasterize::channel;
 use crate::rasterize::{orient_grad, pixel_range_margin, Buffers, BAND};

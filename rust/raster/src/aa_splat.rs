@@ -16,7 +16,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::antialias::AaOutput;
+use crate::aa_output::AaOutput;
 use crate::image::Image;
 use crate::rasterize::Buffers;
 use crate::screen::{Screen, SegmentGrads};
@@ -134,7 +134,7 @@ pub(crate) fn backward(
             out
         })
         .collect();
-    crate::antialias::scatter_corners(parts, grads);
+    crate::aa_output::scatter_corners(parts, grads);
 }
 
 #[cfg(test)]

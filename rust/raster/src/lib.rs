@@ -54,6 +54,7 @@
 
 pub mod aa_nvdiffrast;
 pub mod aa_ours;
+pub mod aa_output;
 pub mod aa_splat;
 pub mod antialias;
 pub mod error;

@@ -107,8 +107,9 @@ impl Report {
         r
     }
 
-    /// Records a finished stage.
-    pub fn record(&mut self, stage: Stage, seconds: f64, stats: serde_json::Value) {
+    /// Records a finished stage with its statistics (`&()` for none).
+    pub fn record(&mut self, stage: Stage, seconds: f64, stats: &impl Serialize) {
+        let stats = serde_json::to_value(stats).unwrap_or(serde_json::Value::Null);
         self.stages.retain(|s| s.stage != stage);
         let peak_rss_mb = peak_rss_bytes().map(|b| (b as f64 / (1 << 20) as f64).round());
         self.stages.push(StageRecord { stage, seconds, peak_rss_mb, stats });

@@ -15,7 +15,6 @@ use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::write_strands;
-use serde::Serialize;
 
 use crate::config::{ConfigFile, ReconstructConfig, Stage};
 use crate::error::ReconError;
@@ -60,20 +59,6 @@ pub struct ReconstructOutput {
     pub report: Report,
 }
 
-/// Files each stage writes (besides `orient2d/<view>.exr|png`, overwritten when it runs again).
-const OUTPUTS: [(Stage, &[&str]); 6] = [
-    (Stage::Orient2d, &["orient2d/maps.bin"]),
-    (Stage::Orient3d, &["points3d.ply"]),
-    (Stage::Partings, &["partings.ply", "partings.json"]),
-    (Stage::Direction, &["points_directed.ply"]),
-    (Stage::Init, &["roots.ply", "flow.bin", "points_axes.ply", "init_guides.hair", "init_strands.hair", "init.json"]),
-    (Stage::Dr, &["loss.csv", "loss.png", "guides.hair", "strands.hair"]),
-];
-
-fn stats<T: Serialize>(s: &T) -> serde_json::Value {
-    serde_json::to_value(s).unwrap_or(serde_json::Value::Null)
-}
-
 /// Runs the plan's stages on the capture into `out_dir` (see the module doc).
 pub fn reconstruct(
     capture: &Capture,
@@ -90,7 +75,7 @@ pub fn reconstruct(
         return Err(ReconError::EmptyPlan { from, stop: last });
     }
     mkdir(out_dir)?;
-    for (_, files) in OUTPUTS.iter().filter(|(s, _)| *s >= from) {
+    for (_, files) in stages::OUTPUTS.iter().filter(|(s, _)| *s >= from) {
         files.iter().try_for_each(|f| remove(&out_dir.join(f)))?;
     }
     ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
@@ -98,39 +83,38 @@ pub fn reconstruct(
     let eval = Evaluator::new(capture);
     let mut report = Report::resumed(&capture.dir, out_dir, from);
     let runs = |s: Stage| from <= s && s <= last;
-    let mut out = ReconstructOutput {
-        strands: None,
-        guides: None,
-        init_strands: None,
-        init_guides: None,
-        loss_csv: None,
-        report: report.clone(),
-    };
-    let finish = |mut out: ReconstructOutput, report: Report| -> Result<ReconstructOutput, ReconError> {
+    let finish = |report: Report| -> Result<ReconstructOutput, ReconError> {
         report.save(&out_dir.join("report.json"))?;
-        out.report = report;
-        Ok(out)
+        let file = |name: &str, made: bool| made.then(|| out_dir.join(name));
+        Ok(ReconstructOutput {
+            strands: file("strands.hair", last >= Stage::Init),
+            guides: file("guides.hair", last >= Stage::Init),
+            init_strands: file("init_strands.hair", last >= Stage::Init),
+            init_guides: file("init_guides.hair", last >= Stage::Init),
+            loss_csv: file("loss.csv", last == Stage::Dr),
+            report,
+        })
     };
 
     let t = Instant::now();
     let maps = if runs(Stage::Orient2d) {
         let o = stages::orient2d::run(&ctx, cfg)?;
         o.save(&ctx, cfg.write_pictures)?;
-        report.record(Stage::Orient2d, t.elapsed().as_secs_f64(), serde_json::Value::Null);
+        report.record(Stage::Orient2d, t.elapsed().as_secs_f64(), &());
         report.scores.orient2d = eval.orient2d(&o.maps)?;
         o.maps
     } else {
         Orient2dOut::load(&ctx, from)?.maps
     };
     if last == Stage::Orient2d {
-        return finish(out, report);
+        return finish(report);
     }
 
     let t = Instant::now();
     let points = if runs(Stage::Orient3d) {
         let o = stages::orient3d::run(&ctx, cfg, &maps)?;
         o.save(&ctx)?;
-        report.record(Stage::Orient3d, t.elapsed().as_secs_f64(), serde_json::Value::Null);
+        report.record(Stage::Orient3d, t.elapsed().as_secs_f64(), &());
         report.scores.orient3d = eval.points(ctx.raw()?, &o.points)?;
         Some(o.points)
     } else if runs(Stage::Direction) {
@@ -139,20 +123,20 @@ pub fn reconstruct(
         None
     };
     if last == Stage::Orient3d {
-        return finish(out, report);
+        return finish(report);
     }
 
     let t = Instant::now();
     let scalp = if runs(Stage::Partings) {
         let o = stages::partings::run(&ctx, cfg)?;
         o.save(&ctx)?;
-        report.record(Stage::Partings, t.elapsed().as_secs_f64(), stats(&o.stats));
+        report.record(Stage::Partings, t.elapsed().as_secs_f64(), &o.stats);
         o.scalp
     } else {
         PartingsOut::load(&ctx, from, &cfg.parting)?.scalp
     };
     if last == Stage::Partings {
-        return finish(out, report);
+        return finish(report);
     }
 
     let t = Instant::now();
@@ -160,7 +144,7 @@ pub fn reconstruct(
         Some(points) => {
             let o = stages::direction::run(&ctx, cfg, &points, &scalp)?;
             o.save(&ctx)?;
-            report.record(Stage::Direction, t.elapsed().as_secs_f64(), stats(&o.stats));
+            report.record(Stage::Direction, t.elapsed().as_secs_f64(), &o.stats);
             report.scores.direction = eval.directions(ctx.raw()?, &o.directed)?;
             o.directed
         }
@@ -168,14 +152,14 @@ pub fn reconstruct(
         None => Default::default(),
     };
     if last == Stage::Direction {
-        return finish(out, report);
+        return finish(report);
     }
 
     let t = Instant::now();
     let init = if runs(Stage::Init) {
         let o = stages::init::run(&ctx, cfg, &directed, &scalp, &maps)?;
         o.save(&ctx)?;
-        report.record(Stage::Init, t.elapsed().as_secs_f64(), stats(&o.stats));
+        report.record(Stage::Init, t.elapsed().as_secs_f64(), &o.stats);
         report.warnings.extend(o.stats.hull_warning.clone());
         if let (Some(axes), Some(c)) = (&o.seen_axes, o.info.curl) {
             report.scores.axes = eval.axes(ctx.raw()?, axes, &c)?;
@@ -188,22 +172,19 @@ pub fn reconstruct(
         InitOut::load(&ctx, from)?
     };
     drop(directed);
-    (out.init_guides, out.init_strands) = (Some(ctx.path("init_guides.hair")), Some(ctx.path("init_strands.hair")));
-    (out.guides, out.strands) = (Some(ctx.path("guides.hair")), Some(ctx.path("strands.hair")));
     if last == Stage::Init {
         write_strands(ctx.path("guides.hair"), &init.guides)?;
         write_strands(ctx.path("strands.hair"), &init.children)?;
-        return finish(out, report);
+        return finish(report);
     }
 
     let t = Instant::now();
     let o = stages::dr::run(&ctx, cfg, &init, &maps, &scalp)?;
     o.save(&ctx)?;
-    report.record(Stage::Dr, t.elapsed().as_secs_f64(), stats(&o.stats));
+    report.record(Stage::Dr, t.elapsed().as_secs_f64(), &o.stats);
     progress.update("metrics", 0.5, "scoring strands");
     report.scores.dr_guides = eval.strands(ctx.raw()?, &o.guides)?;
     report.scores.dr_strands = eval.strands(ctx.raw()?, &o.children)?;
-    out.loss_csv = Some(ctx.path("loss.csv"));
     progress.update("dr", 1.0, "");
-    finish(out, report)
+    finish(report)
 }

@@ -26,6 +26,17 @@ use crate::config::Stage;
 use crate::error::ReconError;
 use crate::progress::Progress;
 
+/// Files each stage writes (besides `orient2d/<view>.exr|png`, overwritten when it runs again);
+/// `guides.hair` and `strands.hair` are the last strand stage's.
+pub const OUTPUTS: [(Stage, &[&str]); 6] = [
+    (Stage::Orient2d, &["orient2d/maps.bin"]),
+    (Stage::Orient3d, &["points3d.ply"]),
+    (Stage::Partings, &["partings.ply", "partings.json"]),
+    (Stage::Direction, &["points_directed.ply"]),
+    (Stage::Init, &["roots.ply", "flow.bin", "points_axes.ply", "init_guides.hair", "init_strands.hair", "init.json"]),
+    (Stage::Dr, &["loss.csv", "loss.png", "guides.hair", "strands.hair"]),
+];
+
 /// What every stage sees: the capture, the output folder, progress, and the meshes (each read
 /// once, when a stage first needs it).
 pub struct Context<'a> {
