@@ -21,9 +21,10 @@
 //!   anchors (strong) and a weak pull downward for lines that are far from horizontal.
 //!
 //! Why not the tree alone: one wrong edge flips a whole subtree, and on tight curls wrong edges
-//! are everywhere. Measured with `hairrecon reconstruct CAPTURE --out DIR --stop-after direction`
-//! on the paper preset (agreement with the ground truth, `metrics.json`): curly 30.0% (tree) →
-//! 88% (diffusion), straight 99.98% → 100%; every line pointed downward gives 86.9% and 99.8%.
+//! are everywhere. Measured at commit 8ff3570 with `hairrecon reconstruct CAPTURE --out DIR
+//! --stop-after direction` on the paper preset (agreement with the ground truth, [`crate::eval`],
+//! `scores.direction` in `report.json`): curly 30.0% (tree) → 88% (diffusion), straight 99.98% →
+//! 100%; every line pointed downward gives 86.9% and 99.8%.
 //!
 //! The ablation ("w/o global opt.") is [`gravity_directions`]: every direction points down (−Z).
 

@@ -9,11 +9,11 @@
 //! Why: growth and DR both leave some strand ends outside the silhouettes (growth follows the raw
 //! mesh, which bulges past the masks where it misreads the hair; the silhouette loss pulls only on
 //! what it renders). Hair there would have been seen unless it is thinner than the mask shows, and
-//! those points are the least precise:
-//! on session 14's straight result, the 6.3% of points outside in some view (one pixel of margin)
-//! matched the ground truth at 2 mm/20° 41–52% of the time, the rest 87%. The pipeline cuts the
-//! children before DR (`hairrecon reconstruct bench_out/paper_STYLE_brown --out OUT`, undirected F1
-//! at 2 mm/20°, session 14 → 15): before DR straight 85.9 → 86.8, curly 49.1 → 51.8, wavy
+//! those points are the least precise: on the paper straight result without the hull (commit
+//! a77a14a), the 6.3% of points outside in some view (one pixel of margin) matched the ground truth
+//! at 2 mm/20° 41–52% of the time, the rest 87%. The pipeline cuts the children before DR (whole
+//! `hairrecon reconstruct` runs on the paper preset, undirected F1 at 2 mm/20°, without → with the
+//! hull, measured at commit 0af8db7): before DR straight 85.9 → 86.8, curly 49.1 → 51.8, wavy
 //! 55.3 → 55.9; after DR straight 87.1 → 88.4 (1 mm 62.9 → 64.0, 3 mm 94.0 → 95.0). Cutting DR's
 //! result again cost 0.5 (straight) and 0.2 (curly): after DR the points outside the masks still
 //! match thin hair there.
@@ -45,8 +45,8 @@ pub struct HullParams {
     /// test preset: 0.22–0.25, where a threshold of 0.5 cut 99% of the points).
     pub min_solid: f32,
     /// [`VisualHull::trim_checked`] refuses a cut that removes more than this share of the points:
-    /// then the masks or cameras disagree with the reconstruction (the paper preset's cuts: 11–20%; the
-    /// add-on's sRGB-encoded sparse masks of session 15: about half).
+    /// then the masks or cameras disagree with the reconstruction (the paper preset's cuts: 11–20%;
+    /// sparse masks that the Blender add-on once wrote sRGB-encoded: about half, at commit a240ec3).
     pub max_cut: f32,
     /// A point counts as behind the head when its depth exceeds the head's by more than this, metres.
     pub head_tolerance: f32,

@@ -121,7 +121,8 @@ pub struct LaplaceParams {
     /// layers, has no condition at all) and strands grown through it loop; the prior fades such a
     /// region into gravity over about 1/√gravity voxels and barely moves the field near a point.
     /// Off by default: on the paper preset (straight) 0.003–0.1 moved the init F1 by under one
-    /// point (`examples/init_stage ... gravity=0.03`); the loops sit where the points are.
+    /// point (the init stage alone on saved directed points, measured at commit 0b98fa8); the loops
+    /// sit where the points are.
     pub gravity: f32,
 }
 

@@ -14,9 +14,10 @@
 //!
 //! Why: on every synthetic capture the strands rooted beside the middle parting left forward along
 //! it, where the ground truth's leave sideways, and the visual hull then cut many of them away,
-//! leaving the parting bare and wider than it is (docs/reconstruction.md, "The front of the crown").
-//! The Gabor maps there carry no strand texture and turn the points along the parting, so turning S
-//! alone did not move the strands (session 34): the points above the skin have to go too.
+//! leaving the parting bare and wider than it is (`docs/method.md`, "Partings"; the measurements in
+//! research/notes/reconstruction-study.md, "The front of the crown"). The Gabor maps there carry no
+//! strand texture and turn the points along the parting, so turning S alone did not move the
+//! strands (measured at commit a3e5429): the points above the skin have to go too.
 //! Masks that are see-through (sparse hair, [`crate::hull::HullParams::min_solid`]) say nothing.
 
 use glam::Vec3;

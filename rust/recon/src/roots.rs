@@ -61,8 +61,9 @@ impl Roots {
 /// the same scalp with the same sampler (`hairrecon synth-hair --seed S` calls
 /// `Scalp::sample_roots(n, S)`), so without it a reconstruction whose seed lines up with the
 /// generator's (the pipeline's children use seed + 1; the benchmark's hair is made with seed 1)
-/// would put its roots exactly on the ground truth's. Until session 26 it did: the 50,000 children
-/// of `hairrecon reconstruct` (seed 0) had the ground truth's 50,000 roots on every benchmark capture.
+/// would put its roots exactly on the ground truth's. Before the salt (added at commit d6c6ee6) it
+/// did: the 50,000 children of `hairrecon reconstruct` (seed 0) had the ground truth's 50,000 roots
+/// on every benchmark capture.
 const ROOT_SEED_SALT: u64 = 0x5EED_0F2E_C040_5700;
 
 /// `n` roots in blue noise on the scalp, deterministic for a given seed, and independent of the

@@ -131,7 +131,8 @@ pub fn mean_down(points: &OrientedPoints) -> f32 {
 /// Ringlets hang: every axis that rises is reversed, so that all point down (-z). On the paper curly
 /// preset the axes' signs, carried over from the directed points (86.7% of them right), agree with
 /// the ground truth's axes for 62.0% of the points, against 72.9% once they all point down (73.8% lie
-/// within 20° either way; `examples/curl_stage`). Not for deciding the handedness by [`mean_down`].
+/// within 20° either way; measured at commit 9415375). Not for deciding the handedness by
+/// [`mean_down`].
 pub fn hang(axes: &mut OrientedPoints) {
     axes.directions.iter_mut().filter(|d| d.z > 0.0).for_each(|d| *d = -*d);
 }
@@ -147,10 +148,10 @@ pub fn hang(axes: &mut OrientedPoints) {
 ///
 /// The cameras see the ringlets' outer side, so the points lie one radius outside the axes, and the
 /// centrelines grown through them ran there; the helices swept about those centrelines then stood a
-/// radius off the ground truth's. Measured on the paper curly preset (docs/curly-study.md,
-/// session 24; `examples/curl_stage … onto=0,6.5,-6.5`): of the points seen on a ground-truth strand,
-/// the median distance to that strand's centreline 6.58 → 1.45 mm at the preset's radius, within
-/// 2 mm 3.5% → 68.1% (moved the wrong way: 12.87 mm).
+/// radius off the ground truth's. Measured on the paper curly preset at commit 9fcf1d6
+/// (research/notes/curly-study.md): of the points seen on a ground-truth strand, the median distance
+/// to that strand's centreline 6.58 mm unmoved → 1.45 mm moved at the preset's radius, within 2 mm
+/// 3.5% → 68.1% (moved the wrong way: 12.87 mm).
 pub fn onto_axes(tangents: &OrientedPoints, axes: &mut OrientedPoints, curl: &Curl) {
     let min_across = 1f32.to_radians().sin();
     axes.positions.par_iter_mut().zip(&axes.directions).zip(&tangents.directions).for_each(|((p, a), t)| {

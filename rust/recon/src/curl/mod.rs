@@ -66,7 +66,7 @@ impl Curl {
 pub enum CurlMode {
     /// Strands grow from the points' own directions, as for straight and wavy hair.
     Off,
-    /// The pipeline decides from the images (`pipeline` docs): curls of the radius, period and
+    /// The pipeline decides from the images ([`crate::curl_choice`]): curls of the radius, period and
     /// handedness whose rendering fits the orientation maps best, or none when strands grown from
     /// the points' directions fit better.
     #[default]
@@ -111,7 +111,7 @@ pub struct CurlOptions {
     /// leaves the surface, and turning that part about the normal tilts the axis out of it. Off by
     /// default: on the paper curly capture it brings the axes within 20° of the ground truth's from
     /// 73.0% to 77.5% (median 12.2° to 10.1°), but the init's F1 stays where it was (19.6 · 71.4 · 90.1
-    /// against 19.7 · 71.4 · 89.8; docs/curly-study.md, session 32).
+    /// against 19.7 · 71.4 · 89.8; measured at commit c37ff06, research/notes/curly-study.md).
     pub project_axes: bool,
     /// Window of the box mean that gives a grown strand's centreline, metres of arc.
     pub centre_window: f32,
@@ -124,7 +124,7 @@ pub struct CurlOptions {
     /// pitch.
     pub nominal_pitch_deg: f32,
     /// `auto`: whether the period is read off the surface's bumps ([`bump_period`]), and how; when
-    /// off, or when the surface shows none, the misfit chooses (`pipeline` docs).
+    /// off, or when the surface shows none, the misfit chooses ([`crate::curl_choice`]).
     pub bump_period: bool,
     pub bumps: BumpOptions,
     /// `auto`: how much more the ringlet axes must point down than the points' directions (mean -z
@@ -145,9 +145,9 @@ pub struct CurlOptions {
 
 impl Default for CurlOptions {
     fn default() -> Self {
-        // The settings of the session-22 study (docs/curly-study.md): sigma 25 mm for the normals, 5 mm for the
-        // axes, a 20 mm window; sigma 10 mm for the normals gave 43% of the axes within 20°, 25 mm 47%
-        // (before the average, which raises it to 65%).
+        // The settings of the ringlet-axes study (commit 54da667, research/notes/curly-study.md):
+        // sigma 25 mm for the normals, 5 mm for the axes, a 20 mm window; sigma 10 mm for the normals
+        // gave 43% of the axes within 20°, 25 mm 47% (before the average, which raises it to 65%).
         Self {
             normal_sigma: 0.025,
             axis_sigma: 0.005,

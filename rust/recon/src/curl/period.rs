@@ -62,9 +62,10 @@ pub struct BumpReport {
 /// [`ringlet_axes`] are within 20° for three quarters of the points on the paper curly preset): the
 /// period seen along a direction δ off the axis is 1/cos δ longer (6% at 20°).
 ///
-/// Measured (docs/curly-study.md, session 29; `examples/bump_period`): paper curly (period 22 mm)
-/// 22.1 mm; a curly capture made with `hairrecon synth-hair --curl 4.5,16` 15.7 mm; straight and
-/// wavy none; the same within 0.6 mm with neighbourhoods of 25 and 60 mm.
+/// Measured at commit cfcd40a on the ringlet axes of saved directed points
+/// (research/notes/curly-study.md): paper curly (period 22 mm) 22.1 mm; a curly capture made with
+/// `hairrecon synth-hair --curl 4.5,16` 15.7 mm; straight and wavy none; the same within 0.6 mm
+/// with neighbourhoods of 25 and 60 mm.
 pub fn bump_period(positions: &[Vec3], axes: &[Vec3], opts: &BumpOptions) -> BumpReport {
     let n = positions.len().min(axes.len());
     let lags = (opts.radius / opts.bin).round() as usize;

@@ -18,34 +18,17 @@
 //!   rayon over views, and the final simulation-ready pass.
 //! - [`report`]: the loss curves as `loss.csv` and `loss.png`.
 //!
-//! Measured (first version):
-//! - Synthetic scene of `tests/dr.rs` (240 strands on a 9 cm sphere, 8 views of 160 px, strands cut
-//!   to 80% and bent up to 4 mm; width 1 mm ≈ 0.4 px): directed F1 at 2 mm/20° 70.4 → 91.4, mean tip
-//!   error 20.5 → 10.0 mm; w/o reparam 85.9 / 10.9 mm; w/o N 88.3 / 10.6 mm (lr 2e-3, λ 10, N weight
-//!   0.05, 150 guide + 100 child steps, 4 views per step). Session 13's defaults (the uniform
-//!   Adam's 0.99 quantile, curvature weight 0.05; `cargo test --release -p hairrecon-recon --test dr
-//!   -- --nocapture`): 70.4 → 89.8, tip error 10.8 mm; w/o reparam 81.6 / 11.7 mm.
-//! - Test-preset capture (16 views of 171×256 px, 1,000 guides, 10,000 children, width 0.2 mm,
-//!   `examples/dr_on_capture.rs`): directed P/R/F1 at 2 mm/20° 53.0/34.0/41.5 before, 54.4/34.4/42.1
-//!   after 60 guide + 20 child steps of 4 random views (1.5 s wall per step), 53.7/34.2/41.8 after
-//!   30 + 10 steps of all 16 views (3.75 s per step; loss of all views 927.3 → 897.9 over the guide
-//!   stage). DR barely moves these strands yet: the init's errors (recall 34%) are mostly missing
-//!   hair, which fixed point counts and roots cannot add.
+//! Measured on the synthetic scene of `tests/dr.rs` (240 strands on a 9 cm sphere, 8 views of
+//! 160 px; `cargo test --release -p hairrecon-recon --test dr -- --nocapture`): with the defaults,
+//! directed F1 at 2 mm/20° 70.4 → 89.8 and mean tip error 20.5 → 10.8 mm (without the
+//! reparameterization 81.6 / 11.7 mm). The figures on the paper presets, by commit, are in
+//! `docs/reconstruction.md`; the studies behind the defaults in
+//! `research/notes/reconstruction-study.md`.
 //!
-//! - In the pipeline (`hairrecon reconstruct`, defaults: 60 guide + 20 child steps of 4 views, CG
-//!   tolerance 1e-3), test-preset capture with 2,000 guides and 50,000 children (3.6 M points), on
-//!   the shared 2-core machine under load: directed/undirected F1 at 2 mm/20° 44.8/45.8 before,
-//!   45.2/46.3 after (w/o reparam 45.2/46.2, w/o N 45.4/46.4, w/o guide stage 44.8/45.8); 6.3 s per
-//!   guide step and 11.8 s per child step with two runs in parallel; peak RSS 4.4 GB. Timing a step
-//!   at the paper preset's image size (`examples/dr_on_capture.rs` with `upscale=2`): 5.6 s per
-//!   guide step and 9.9 s per child step.
-//! - Synthetic capture of `tests/pipeline_dr.rs` (alpha mattes as masks, strands 1 mm wide,
-//!   60 + 30 steps): F1 78.9 → 82.6; 78.3 → 86.3 with session 13's defaults.
-//!
-//! - Paper curly capture (session 5, `examples/dr_on_capture.rs` on the saved init): the final
-//!   segment evening alone had lowered undirected F1 at 2 mm/20° from 47.9 to 41.5 (it resampled
-//!   the resampled polyline ten times and cut the curls' corners, strands 11% shorter at the
-//!   median); resampling on the input polyline gives 45.3, and the whole DR 46.2 (was 41.9).
+//! The final pass evens the segments with points taken on each strand's input polyline: resampling
+//! the resampled polyline in every pass cut the curls' corners (paper curly capture, undirected F1
+//! at 2 mm/20° 47.9 → 41.5 from that pass alone, 45.3 with points on the input; measured at commit
+//! 1ac3d7a).
 //!
 //! The regularizers are scaled by the mean hair area of a view over the number of optimized points
 //! ([`optimize::regularizer_factor`]), so the guide and child stages weigh them alike against the
@@ -167,10 +150,10 @@ pub struct DrTargets {
 
 impl DrTargets {
     /// Targets from a capture and its orientation maps (one per view, as [`crate::orient2d`] or
-    /// [`crate::pipeline::load_orient2d`] give them). The mask of a view is its hair mask (as
-    /// coverage, the luminance in [0, 1]); without one, pixels with orientation confidence above 0
-    /// count as hair. With `head`, strands behind the head are hidden. Reports per view as stage
-    /// "dr" and stops when `progress` is cancelled.
+    /// [`crate::stages::orient2d::Orient2dOut::load`] give them). The mask of a view is its hair
+    /// mask (as coverage, the luminance in [0, 1]); without one, pixels with orientation confidence
+    /// above 0 count as hair. With `head`, strands behind the head are hidden. Reports per view as
+    /// stage "dr" and stops when `progress` is cancelled.
     pub fn from_capture(
         capture: &Capture,
         maps: &[OrientationMap],
@@ -200,9 +183,10 @@ impl DrTargets {
 impl DrTargets {
     /// Zeroes the orientation's confidence where a view sees the head within the partings' reach of
     /// their skin ([`crate::parting`]): the Gabor maps there carry no strand texture and run along
-    /// the parting (docs/reconstruction.md, "The front of the crown"), so the orientation loss would
-    /// turn the strands that leave the parting sideways back along it; the silhouette still holds
-    /// them. Views without the head's depth are left as they are. Returns the pixels quieted.
+    /// the parting (`docs/method.md`, "Partings"; research/notes/reconstruction-study.md, "The front
+    /// of the crown"), so the orientation loss would turn the strands that leave the parting
+    /// sideways back along it; the silhouette still holds them. Views without the head's depth are
+    /// left as they are. Returns the pixels quieted.
     pub fn quiet_partings(&mut self, partings: &hairrecon_core::scalp::Partings) -> usize {
         self.views
             .iter_mut()
@@ -245,11 +229,12 @@ pub struct DrOptions {
     /// The learning rate at a stage's last step, as a fraction of `lr`: the rate falls linearly
     /// over each stage from `lr` to `lr · lr_end` (1: constant). With a few random views per step
     /// the gradient is noisy, and at a constant rate the last steps leave that noise in the strands.
-    /// Measured (session 37, `examples/dr_on_capture CAPTURE INIT OUT [lr_end=0.1]` on the inits of
-    /// whole runs, undirected F1 at 1 · 2 · 3 mm, constant → 0.1): straight 20,000 strands in 16
-    /// views of 384 px (the demo's capture) 45.5 · 79.2 · 90.2 → 47.6 · 80.3 · 90.7 (init 49.3 ·
-    /// 80.2 · 90.1); paper preset (constant: session 35's whole runs) straight 69.9 · 90.4 · 95.9 →
-    /// 70.5 · 90.6 · 96.1, curly (`keep_curls=1`) 19.8 · 73.7 · 92.6 → 20.0 · 73.5 · 92.2.
+    /// Measured at commit 1b061f9 (DR alone on the saved inits of whole runs, as `hairrecon
+    /// reconstruct --from dr` runs it; undirected F1 at 1 · 2 · 3 mm, constant → 0.1): straight
+    /// 20,000 strands in 16 views of 384 px (the demo's capture) 45.5 · 79.2 · 90.2 → 47.6 · 80.3 ·
+    /// 90.7 (init 49.3 · 80.2 · 90.1); paper preset (constant: the whole runs of the time) straight
+    /// 69.9 · 90.4 · 95.9 → 70.5 · 90.6 · 96.1, curly (keeping the curls) 19.8 · 73.7 · 92.6 → 20.0
+    /// · 73.5 · 92.2.
     pub lr_end: f32,
     /// λ of `u = (I + λL) x`.
     pub lambda: f32,
@@ -279,8 +264,8 @@ pub struct DrOptions {
     /// Adam moves every point about `lr` per step, noise included: median 5 mm after 20 steps,
     /// straight 84.5 → 79.1, curly 51.9 → 48.6. The 0.99 quantile sits between (median 0.4–0.8 mm):
     /// straight 85.1, curly 52.1 with curvature weight 0.05 (the 0.9 quantile: straight 84.5).
-    /// Measured with `examples/dr_on_capture CAPTURE INIT OUT guides_iters=20 children_iters=0
-    /// equalize=0 [uniform=0 | aq=Q] [wc=W]` on the session-12 inits, undirected F1 at 2 mm/20°.
+    /// Measured at commit 6a05744: 20 guide steps of DR alone (no child stage, no final evening) on
+    /// the saved paper-preset inits of the time, undirected F1 at 2 mm/20°.
     pub adam_quantile: f32,
     /// How the guide stage's child map blends the guides (the pipeline sets it to
     /// `GrowParams::blend`, so that it matches the init's children).
@@ -341,11 +326,11 @@ impl DrOptions {
     /// against the init's own curvature with weight [`CURL_CURVATURE_WEIGHT`] (the curls' shape
     /// kept, only its change penalized) and the learning rate times [`CURL_LR_SCALE`]. DR's moves
     /// across the strands (1.9 mm at the median on the paper curly capture with the plain options,
-    /// 1.1 mm with these, `scripts/strand_moves.py`) carry no information at 1 mm and draw the
-    /// helices out; DR alone on session 29's curly init (`examples/dr_on_capture`, undirected F1 at
-    /// 1 · 2 · 3 mm): these options 18.8 · 72.8 · 92.3 (directed 71.3 at 2 mm), the plain options
-    /// 17.3 · 71.4 · 92.1 (69.5); R_c relative at weight 5 alone 18.1 · 72.2 · 92.3, half the rate
-    /// alone 18.4 · 72.6 · 92.3 (session 30, docs/curly-study.md).
+    /// 1.1 mm with these) carry no information at 1 mm and draw the helices out. DR alone on the
+    /// saved paper curly init (undirected F1 at 1 · 2 · 3 mm, measured at commit e4c0c5e): these
+    /// options 18.8 · 72.8 · 92.3 (directed 71.3 at 2 mm), the plain options 17.3 · 71.4 · 92.1
+    /// (69.5); R_c relative at weight 5 alone 18.1 · 72.2 · 92.3, half the rate alone 18.4 · 72.6 ·
+    /// 92.3 (research/notes/curly-study.md).
     pub fn keeping_curls(&self) -> Self {
         let mut o = self.clone();
         o.curvature_relative = true;
@@ -399,10 +384,10 @@ pub struct DrResult {
 /// Points deeper inside the head than this are left alone by [`push_out_of_head`]: on a head mesh
 /// with holes (a cut neck) the pseudo-normal sign can be wrong far from the surface, and moving such
 /// a point up to 5 cm onto the surface did more harm than good (measured on the test-preset
-/// capture: 37 guide points moved by up to 50 mm, and the loss rose from 924 to 1475). 10 mm since
-/// children blend 2 guides (session 6): a child between two guides that part around the head can
-/// be pulled 5–10 mm into it during the guide stage (the sphere head of tests/pipeline_dr.rs had
-/// a point 5.6 mm inside at a limit of 5 mm, none at 10 mm).
+/// capture: 37 guide points moved by up to 50 mm, and the loss rose from 924 to 1475). 10 mm
+/// because children blend 2 guides: a child between two guides that part around the head can be
+/// pulled 5–10 mm into it during the guide stage (the sphere head of `tests/pipeline_dr.rs` had a
+/// point 5.6 mm inside at a limit of 5 mm, none at 10 mm; measured at commit ade29e2).
 pub(crate) const MAX_PUSH_DEPTH: f32 = 0.01;
 
 /// A point is moved out of the head to `clearance` outside it if it is closer or inside (by at

@@ -79,12 +79,12 @@ pub const PARTING_ARC: f32 = 0.02;
 /// one; only the nearest when the guides part (see [`BlendParams::parting_reach`]). Shared by
 /// [`interpolate_children`] and the DR's child map, so that both pick the same guides.
 ///
-/// The parting rule, measured in session 11 on the freshly rendered paper straight capture
-/// (`examples/init_stage bench_out/paper_straight_brown DIR OUT children=10000 gt_every=5
-/// parting_reach=R`, DIR a `hairrecon reconstruct` output; undirected F1 at 2 mm/20°): off 74.5,
-/// reach 0.3 74.6, **0.5** 74.6; dropping every guide that leaves more than 90° away from the
-/// nearest one instead cost recall (74.1). On the DR test's sphere (`tests/pipeline_dr.rs`) it
-/// takes the worst max/min segment ratio after DR from 2.02 to 1.008.
+/// The parting rule, measured at commit 0659987 on the paper straight capture (the init stage alone
+/// on saved directed points, as `hairrecon reconstruct --from init` runs it, with 10,000 children
+/// scored against every 5th ground-truth strand; undirected F1 at 2 mm/20°): off 74.5, reach 0.3
+/// 74.6, **0.5** 74.6; dropping every guide that leaves more than 90° away from the nearest one
+/// instead cost recall (74.1). On the DR test's sphere (`tests/pipeline_dr.rs`) it takes the worst
+/// max/min segment ratio after DR from 2.02 to 1.008.
 #[derive(Debug)]
 pub struct GuideBlend {
     eligible: Vec<usize>,

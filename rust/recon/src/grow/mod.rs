@@ -48,15 +48,15 @@ pub use smooth::{cut_at_arc, smooth_guides, SmoothStats};
 /// that both pick the same guides with the same weights); see [`GuideBlend`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BlendParams {
-    /// Guides per child. 2 on measurement (paper preset, `examples/init_stage ... children=50000
-    /// k=K`, undirected F1 at 2 mm/20°): curly k = 1/2/3/4 gave 33.7/50.7/49.5/47.9 (one guide
-    /// ends children wherever it ends; more guides blend curls of different phase into zig-zags),
-    /// straight k = 2/4 gave 79.9/79.8 (1 mm/10°: 54.5/56.2).
+    /// Guides per child. 2 on measurement (paper preset, the init stage alone with 50,000 children,
+    /// undirected F1 at 2 mm/20°, commit ade29e2): curly k = 1/2/3/4 gave 33.7/50.7/49.5/47.9 (one
+    /// guide ends children wherever it ends; more guides blend curls of different phase into
+    /// zig-zags), straight k = 2/4 gave 79.9/79.8 (1 mm/10°: 54.5/56.2).
     pub k: usize,
     /// Children blend only guides at least this fraction of the median guide's length (0: every
     /// guide): a guide that ended at its root, where the volume has no flow, would end its children
-    /// there too. Relative, so that short styles keep their guides. Measured (`examples/init_stage
-    /// ... children=50000 min_guide_fraction=F`, undirected F1 at 2 mm/20°): paper curly 50.7 → 52.8
+    /// there too. Relative, so that short styles keep their guides. Measured at commit cf7dab4 (the
+    /// init stage alone with 50,000 children, undirected F1 at 2 mm/20°): paper curly 50.7 → 52.8
     /// at 0.3 (recall 53.7 → 60.3; absolute minima of 2, 8, 15 cm gave 52.0, 52.6, 53.1), paper
     /// straight 79.9 → 79.8, the sparse test preset 56.2 → 54.3.
     pub min_guide_fraction: f32,
@@ -120,9 +120,9 @@ pub struct GrowParams {
     /// Tracing: within this radius of the directed 3D points (metres; 0: off), a strand also
     /// follows them: their mean direction (of those going its way) and a pull toward their centre,
     /// blended with the field by weight `w / (w + trace_weight)`. The field is smooth at the scale
-    /// of its voxels; the points carry the curls. Measured (`examples/init_stage.rs … children=10000
-    /// gt_every=5`, paper preset, undirected F1 at 2 mm/20°): off → on: straight 67.3 → 71.3, wavy
-    /// 30.1 → 31.2, curly 22.8 → 23.8.
+    /// of its voxels; the points carry the curls. Measured at commit 5403f75 (the init stage alone
+    /// with 10,000 children scored against every 5th ground-truth strand, paper preset, undirected
+    /// F1 at 2 mm/20°): off → on: straight 67.3 → 71.3, wavy 30.1 → 31.2, curly 22.8 → 23.8.
     pub trace_radius: f32,
     pub trace_weight: f32,
     /// Tracing: the pull toward the points' centre, per radius of offset.
@@ -148,17 +148,17 @@ pub struct GrowParams {
     /// surface says it is more than `outer_margin` outside was projected onto that surface at its
     /// first step: at the nape of the straight paper capture the guides jumped 2–4 cm backward and
     /// their first 3 cm pointed back and out where the hair falls straight down (1% precise at
-    /// 2 mm/20°, `examples/metric_by_arc` with `BY_ROOT=1`). The scalp is under the hair, so such a
-    /// root's sign is doubted: its strand ignores the outer surface until it first gets inside or
-    /// has grown `root_gap` metres, going straight on through missing field meanwhile. Measured
-    /// (`examples/init_stage CAPTURE DIR OUT children=10000 gt_every=5`, undirected F1 at
-    /// 2 mm/20°): straight 74.6 → 77.2 (0.05 m: 74.4; 0.3 m: 77.2); curly, grown then from its
-    /// incoherent points, 31.2 → 26.7 and wavy 38.0 → 39.5 (session 13), so until session 39 it
-    /// applied only where the median guide's points were coherent (straight hair, and curly hair
-    /// grown along its ringlet axes since session 22). Wavy hair's points are not (18° against
-    /// straight's 11°), and without free starts its guides at the back and sides left the scalp
-    /// 47–53° off the ground truth's, level where it falls (session 39, docs/reconstruction.md,
-    /// "Wavy hair's roots"); free starts now apply on every style.
+    /// 2 mm/20°, scored by root region). The scalp is under the hair, so such a root's sign is
+    /// doubted: its strand ignores the outer surface until it first gets inside or has grown
+    /// `root_gap` metres, going straight on through missing field meanwhile. Measured at commit
+    /// 3cb7493 (the init stage alone with 10,000 children scored against every 5th ground-truth
+    /// strand, undirected F1 at 2 mm/20°): straight 74.6 → 77.2 (0.05 m: 74.4; 0.3 m: 77.2); curly,
+    /// grown then from its incoherent points, 31.2 → 26.7 and wavy 38.0 → 39.5, so earlier versions
+    /// applied it only where the median guide's points were coherent (straight hair, and curly hair
+    /// grown along its ringlet axes). Wavy hair's points are not (18° against straight's 11°), and
+    /// without free starts its guides at the back and sides left the scalp 47–53° off the ground
+    /// truth's, level where it falls (research/notes/reconstruction-study.md, "Wavy hair's roots");
+    /// free starts apply on every style since commit 70cc3c0.
     pub root_gap: f32,
     /// Gravity: beyond `climb_after` metres of arc, a step rises at most `max_climb` (the sine of
     /// its angle above the horizontal; 1: off), both the direction the field and the points give
@@ -168,11 +168,11 @@ pub struct GrowParams {
     /// straight and wavy 0%, curly 1–9%, the helices; our directed points: 0% below 6 cm from the
     /// top), nearly all of them where the outer surface's projection pushed them (the raw mesh's
     /// surface pieces inside the hair), and a climbing step is one that matches the ground truth
-    /// only reversed. Measured at full size (`examples/init_stage bench_out/paper_STYLE_brown
-    /// DIR OUT children=50000 [max_climb=1]` on session 13's direction outputs; undirected /
-    /// directed F1 at 2 mm/20°, off → on): straight 84.5 / 82.1 → 85.9 / 85.8, wavy 53.5 / 47.4 →
-    /// 55.3 / 54.7, curly 51.9 / 40.8 → 49.1 / 44.5 (the curls' climbing steps matched reversed
-    /// helices); test preset 56.9 / 53.7 → 60.0 / 60.0. Proxy (`children=10000 gt_every=5`),
+    /// only reversed. Measured at commit 33926ba, at full size (the init stage alone with 50,000
+    /// children on the paper preset's saved directed points; undirected / directed F1 at 2 mm/20°,
+    /// off → on): straight 84.5 / 82.1 → 85.9 / 85.8, wavy 53.5 / 47.4 → 55.3 / 54.7, curly 51.9 /
+    /// 40.8 → 49.1 / 44.5 (the curls' climbing steps matched reversed helices); test preset 56.9 /
+    /// 53.7 → 60.0 / 60.0. With 10,000 children scored against every 5th ground-truth strand,
     /// `climb_after` 1 / 3 / 6 cm: straight 77.9 / 78.3 / 78.4, wavy 39.9 / 39.7 / 39.4, curly
     /// 28.8 / 29.3 / 29.6 (off: 77.2, 38.0, 31.2; a first form of the rule, which kept a vertical
     /// step vertical: curly 29.2 as it is now); `max_climb` 0.1 / 0.2 / 0.3 at 1 cm: wavy
@@ -183,17 +183,17 @@ pub struct GrowParams {
     /// Points trump the field: where the traced points' weight (see [`GrowParams::trace_radius`])
     /// is at least this, the strand follows them alone, with no field blend, no slide along the
     /// outer surface (it may end up to 1 cm outside it) and no climb limit; 0 (the default): off.
-    /// Through ground-truth points everywhere (`examples/oracle_points … all`) the growth's rules
-    /// cost most of the guides' precision on curly (`examples/guide_select`, pooled undirected
-    /// precision at 2 mm/20°: defaults 63.9%, `trace_trumps=0.3` with `trace_pull=0,trace_power=4,
-    /// trace_min_cos=0.5,trace_radius=0.002,step=0.001` 77.1%, `scripts/trace_points.py`, the
-    /// points alone, 87.6% over shorter strands). Through our own points (session 15's curly run)
-    /// `trace_trumps=1,max_climb=1` makes the guides 51.0 → 62.9% precise, but they keep to the
-    /// visible surface (87% of their points within 2 mm of a directed point) and the children
-    /// lose recall (`examples/init_stage … children=50000`, undirected P / R / F1 at 2 mm/20°:
-    /// 43.3 / 56.6 / 49.1 → 50.7 / 42.8 / 46.4). Half the children from each set (the field's
-    /// cover the volume, the traced ones the visible curls) score 51.8 with `loop_window=0`, and
-    /// wavy 55.3 → 57.0, but directed F1 falls (curly 44.5 → 43.1): docs/curly-study.md, session 18.
+    /// Measured at commit bf4970f on the paper curly capture (research/notes/curly-study.md): grown
+    /// through ground-truth points everywhere, the growth's rules cost most of the guides' precision
+    /// (pooled undirected precision of the guides at 2 mm/20°: defaults 63.9%, `trace_trumps=0.3`
+    /// with `trace_pull=0, trace_power=4, trace_min_cos=0.5, trace_radius=0.002, step=0.001` 77.1%,
+    /// strands traced through the points alone 87.6% over shorter strands). Through our own points
+    /// `trace_trumps=1, max_climb=1` makes the guides 51.0 → 62.9% precise, but they keep to the
+    /// visible surface (87% of their points within 2 mm of a directed point) and the children lose
+    /// recall (50,000 children, undirected P / R / F1 at 2 mm/20°: 43.3 / 56.6 / 49.1 → 50.7 / 42.8
+    /// / 46.4). Half the children from each set (the field's cover the volume, the traced ones the
+    /// visible curls) score 51.8 with `loop_window=0`, and wavy 55.3 → 57.0, but directed F1 falls
+    /// (curly 44.5 → 43.1).
     pub trace_trumps: f32,
 }
 

@@ -74,23 +74,24 @@ pub struct SmoothStats {
 }
 
 /// Smooths the guides along which the directed points are coherent (straight hair), see
-/// [`GrowParams::smooth_sigma`]; points that the smoothing takes into the head are pushed out.
-/// A guide without points near it takes the median coherence of the others. Measured
-/// (`examples/init_stage … children=10000 gt_every=5`, paper preset, undirected F1 at 2 mm/20°,
-/// 1 mm/10° in brackets): smoothing every guide by σ = 4 mm: straight 71.9 → 74.5 (39.5 → 45.7),
-/// wavy 38.0 → 33.0, curly 32.0 → 18.2 (their zig-zags offer tangents that the curls' cone of
-/// tangents matches; smooth strands along the curls' axis match none). The guides' median
-/// coherence angle: straight 11.1°, wavy 18.0°, curly 17.9°. With the default thresholds 12°/14.5°
-/// (1246 / 337 / 417 straight guides smoothed fully / partly / not; curly 20 / 169 / 1811): straight
-/// 71.9 → 73.9 (39.5 → 44.0), curly 32.0 → 31.6; thresholds 13°/16°: straight 74.5, wavy 38.0 →
-/// 38.5, curly 31.1. Session 10, σ (default thresholds) 4 → 8 / 12 / 20 mm: straight 73.9 → 74.8 /
-/// 75.2 / **75.6**, curly 31.6 → 31.3 at 12 and 20 mm, wavy 38.3 → 38.2 at 12 mm; σ 20 mm with
-/// thresholds 14°/17° gave straight 76.2 but curly 29.4, σ 30 mm with 15°/18° straight 75.3. At
-/// full size (`children=50000`) σ 20 mm lifts straight from 81.8 to 83.7 (1 mm/10° 59.7 → 63.3,
-/// directed 79.4 → 81.3): the straight guides' wiggles are tracing noise over centimetres. The
-/// default since session 11, when the DR test's one uneven strand (`tests/pipeline_dr.rs`, a
-/// max/min segment ratio of 2.02) turned out to be a child blending two guides on either side of a
-/// parting, now prevented by [`BlendParams::parting_reach`].
+/// [`GrowParams::smooth_sigma`]; points that the smoothing takes into the head are pushed out. A
+/// guide without points near it takes the median coherence of the others. Measured at commit
+/// 7e468b1 (the init stage alone with 10,000 children scored against every 5th ground-truth strand,
+/// paper preset, undirected F1 at 2 mm/20°, 1 mm/10° in brackets): smoothing every guide by
+/// σ = 4 mm: straight 71.9 → 74.5 (39.5 → 45.7), wavy 38.0 → 33.0, curly 32.0 → 18.2 (their zig-zags
+/// offer tangents that the curls' cone of tangents matches; smooth strands along the curls' axis
+/// match none). The guides' median coherence angle: straight 11.1°, wavy 18.0°, curly 17.9°. With
+/// the default thresholds 12°/14.5° (1246 / 337 / 417 straight guides smoothed fully / partly /
+/// not; curly 20 / 169 / 1811): straight 71.9 → 73.9 (39.5 → 44.0), curly 32.0 → 31.6; thresholds
+/// 13°/16°: straight 74.5, wavy 38.0 → 38.5, curly 31.1. At commit 47e5d5a, σ (default thresholds)
+/// 4 → 8 / 12 / 20 mm: straight 73.9 → 74.8 / 75.2 / **75.6**, curly 31.6 → 31.3 at 12 and 20 mm,
+/// wavy 38.3 → 38.2 at 12 mm; σ 20 mm with thresholds 14°/17° gave straight 76.2 but curly 29.4,
+/// σ 30 mm with 15°/18° straight 75.3. At full size (50,000 children) σ 20 mm lifts straight from
+/// 81.8 to 83.7 (1 mm/10° 59.7 → 63.3, directed 79.4 → 81.3): the straight guides' wiggles are
+/// tracing noise over centimetres. The default since commit 8a37645, when the DR test's one uneven
+/// strand (`tests/pipeline_dr.rs`, a max/min segment ratio of 2.02) turned out to be a child
+/// blending two guides on either side of a parting, now prevented by
+/// [`BlendParams::parting_reach`].
 pub fn smooth_guides(
     guides: &StrandSet,
     points: Option<&PointIndex>,

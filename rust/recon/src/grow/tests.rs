@@ -178,7 +178,7 @@ fn a_root_read_outside_the_raw_mesh_starts_free_whatever_the_points() {
     assert!(first(&g).y > 0.9, "first step {:?}", first(&g));
     assert_eq!(stats.free_starts, 0);
     // With it the guide goes straight down for `root_gap`, whether the points agree (straight
-    // hair) or their tangents go all round (wavy hair's points are incoherent, session 39).
+    // hair) or their tangents go all round (wavy hair's points are incoherent).
     let incoherent = |i: usize| {
         let a = i as f32 * 2.4;
         Vec3::new(a.cos(), a.sin(), 0.3 * (1.7 * a).sin()).normalize()
