@@ -216,7 +216,7 @@ def run(a) -> int:
     if need_full:
         m = json.loads((full_dir / "metrics.json").read_text())
         keep_curls = bool(m.get("dr_keeps_curls", False))
-        # The pipeline's DR quiets the orientation loss around the partings it found (session 38).
+        # The pipeline's DR quiets the orientation loss around the partings it found.
         quiet = "parting_pixels_quieted" in m and (full_dir / "partings.ply").is_file()
         if "dr_strands" not in m:
             raise AblationError(f"{full_dir}/metrics.json has no dr_strands: run the full method (without --no-dr)")

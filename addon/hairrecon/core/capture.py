@@ -66,9 +66,9 @@ def hair_color(views: Sequence["ViewInput"], min_coverage: int = 230, max_sample
 
 # The Principled Hair BSDF's direct colouring C (grey) against the median linear value of the fully
 # covered hair pixels it renders to, under a uniform white environment of strength 1 (the synthetic
-# captures' light): `.venv/bin/python scripts/hair_color_curve.py out/demo/capture` on the demo's
-# capture (20,000 wavy strands, 16 views of 171x256 px), session 33. The response is far from the
-# identity: C = 0.1 renders to 0.25, and the specular lobe keeps dark hair above 0.04.
+# captures' light), measured at commit ff68f35 by `.venv/bin/python scripts/hair_color_curve.py
+# out/demo/capture` (now research/scripts/) on the demo's capture of then (20,000 wavy strands, 16 views
+# of 171x256 px). The response is far from the identity: C = 0.1 renders to 0.25, and the specular lobe keeps dark hair above 0.04.
 DIRECT_COLOR_RESPONSE = ((0.005, 0.0429), (0.01, 0.0584), (0.02, 0.0847), (0.05, 0.1539), (0.1, 0.2490),
                          (0.2, 0.4059), (0.35, 0.5651), (0.5, 0.6594), (0.7, 0.7264), (0.9, 0.7465))
 
