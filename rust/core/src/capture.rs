@@ -248,8 +248,8 @@ impl CaptureSpec {
         Ok(cameras)
     }
 
-    /// A spec from parsed JSON, strictly: errors name the view (`views[2] "view_002": missing field
-    /// `image``), and a field that the schema does not have (a misspelt `"gt_strand"`) is an error
+    /// A spec from parsed JSON, strictly: errors name the view and the field (`views[2] "view_002":
+    /// missing field image`), and a field that the schema does not have (a misspelt `"gt_strand"`) is an error
     /// rather than silently dropped. `json` names the file in errors. Does not validate; see
     /// [`CaptureSpec::validate`].
     pub fn from_json(value: serde_json::Value, json: &Path) -> Result<Self, CaptureError> {
