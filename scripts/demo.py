@@ -31,13 +31,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PY = sys.executable
 # The demo's views: the test preset's 16, at 384 px instead of 256. On the demo's 20,000 straight strands (seed 7)
-# the init scored undirected F1 76.0 at 2 mm/20° on 256 px views and 80.2 on 384 px (session 37), for 14 s more
-# rendering. Wavy hair (`--style wavy`), the demo's style until session 36, scored 34.0 -> 39.6 on 256 px views
+# the init scored undirected F1 76.0 at 2 mm/20° on 256 px views and 80.2 on 384 px (commit 1b061f9), for 14 s
+# more rendering. Wavy hair (`--style wavy`), the demo's style before that commit, scored 34.0 -> 39.6 on 256 px views
 # and 32.7 -> 37.1 on 30 views of 384 px (docs/reconstruction.md, "The demo's hair and views").
 HEIGHT = 384
 # Ground-truth strands of the demo's hairstyle. The method needs hair dense enough that the cameras do not see
 # through it (the raw mesh and the masks then describe a surface): with 2,000 strands the demo scored undirected
-# F1 15.4 -> 15.5 at 2 mm/20° (session 15, 1 min 42 s), with 20,000 29.3 -> 35.8 (session 19, 4 min 58 s).
+# F1 15.4 -> 15.5 at 2 mm/20° (commit 7a687b0, 1 min 42 s), with 20,000 29.3 -> 35.8 (commit dbc9a67, 4 min 58 s).
 STRANDS = 20000
 CHILDREN = 20000
 

@@ -1,9 +1,10 @@
 """Render a synthetic multi-view capture of a hairstyle on a head with Blender Cycles.
 
-Runs as ``python scripts/render_synthetic.py ARGS`` (the ``bpy`` module) and as
-``blender -b -P scripts/render_synthetic.py -- ARGS``. Input: any ``.hair`` file and the head PLY
-(metres, Z up, face toward -Y). Output: a capture folder that ``hairrecon_core::capture::Capture::load``
-accepts, laid out as ``docs/capture-format.md`` describes:
+Runs as ``.venv/bin/python scripts/render_synthetic.py ARGS`` (the ``bpy`` module) and as
+``blender -b -P scripts/render_synthetic.py -- ARGS`` when Blender's Python has the ``hairrecon``
+module (its wheel, target/wheels-hairrecon/): the library reads and writes every file. Input: any
+``.hair`` file and the head PLY (metres, Z up, face toward -Y). Output: a capture folder that
+``hairrecon_core::capture::Capture::load`` accepts, laid out as ``docs/capture-format.md`` describes:
 
     capture.json, images/, masks/, gt/orientation/, gt/depth/, gt/strands.hair, head.ply, scalp.ply,
     fusion/depth/ (depth maps for the raw mesh), raw_mesh.ply, scene.blend
@@ -42,16 +43,30 @@ from pathlib import Path
 
 import numpy as np
 
+try:
+    # The Rust library reads and writes every file here (.hair, PLY, PNG, OpenEXR, capture.json).
+    import hairrecon
+except ImportError as e:
+    raise ImportError(
+        f"render_synthetic.py needs the hairrecon Python module ({e}): run it with .venv/bin/python after "
+        "scripts/setup_env.sh, or install target/wheels-hairrecon/hairrecon-*.whl into Blender's Python"
+    ) from None
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _hairio as hio  # noqa: E402
+# The Blender extension's bpy-free core, loaded as `hairrecon_addon_core` (scripts/addon_core.py): its
+# Blender-to-OpenCV camera conversion and sRGB curve are the ones the extension uses.
+import addon_core  # noqa: E402
+
+camera = addon_core.load("camera")
+linear_to_srgb = addon_core.load("capture").linear_to_srgb
 
 REPO = Path(__file__).resolve().parent.parent
 
 PRESETS = {
     # strands only matter to make_benchmark.py (it asks synth-hair for that many); views, height, samples here.
     "test": dict(strands=2000, views=16, height=256, samples=32),
-    # 128 samples (32 until session 35): at 32 the sampling noise of the sub-pixel strands buries their texture
-    # and the Gabor maps of the straight capture err by 19.3° over the hair, at 128 by 12.4° (README).
+    # 128 samples (32 before commit ab0286e): at 32 the sampling noise of the sub-pixel strands buries their
+    # texture and the Gabor maps of the straight capture err by 19.3° over the hair, at 128 by 12.4° (README).
     "paper": dict(strands=50000, views=58, height=512, samples=128),
     # The colour study (issue 6: wavy in six colours): the paper's hair at about 0.3 of its render cost.
     "colors": dict(strands=50000, views=30, height=384, samples=32),
@@ -332,7 +347,8 @@ def hair_material(bpy, a):
 
 
 def add_cameras(bpy, sc, a, target: np.ndarray, radius: float):
-    """One camera object per view. Returns [(name, object, K, R, t)] with K, R, t from bpy's matrices."""
+    """One camera object per view. Returns [(name, object, PinholeCamera)], the OpenCV camera converted
+    from the Blender camera object (the add-on's conversion, addon/hairrecon/core/camera.py)."""
     h = a.height
     w = int(round(h * 2 / 3))
     sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = w, h, 100
@@ -364,46 +380,30 @@ def add_cameras(bpy, sc, a, target: np.ndarray, radius: float):
         ob.matrix_world = mathutils.Matrix(m.tolist())
         cams.append((name, ob))
     bpy.context.view_layer.update()
-    out = []
-    for name, ob in cams:
-        k, r, t = opencv_camera(sc, ob)
-        out.append((name, ob, k, r, t))
-    return out
-
-
-def opencv_camera(sc, ob):
-    """K, R, t of a Blender camera, exactly as docs/blender-notes.md derives them."""
-    cam = ob.data
-    rd = sc.render
-    w = rd.resolution_x * rd.resolution_percentage / 100
-    h = rd.resolution_y * rd.resolution_percentage / 100
-    pa = rd.pixel_aspect_y / rd.pixel_aspect_x
-    fit = cam.sensor_fit
-    if fit == "AUTO":
-        fit = "HORIZONTAL" if rd.pixel_aspect_x * w >= rd.pixel_aspect_y * h else "VERTICAL"
-    view = w if fit == "HORIZONTAL" else pa * h
-    sensor = cam.sensor_height if cam.sensor_fit == "VERTICAL" else cam.sensor_width
-    fx = cam.lens / sensor * view
-    fy = fx / pa
-    cx = (w - 1) / 2 - cam.shift_x * view
-    cy = (h - 1) / 2 + cam.shift_y * view / pa
-    k = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-    m = np.array(ob.matrix_world.normalized())
-    r = np.diag([1.0, -1.0, -1.0]) @ m[:3, :3].T
-    t = -r @ m[:3, 3]
-    return k, r, t
+    return [(name, ob, camera.opencv_from_blender(camera.blender_camera(ob, sc))) for name, ob in cams]
 
 
 def render_exr(bpy, sc, path: Path) -> dict:
+    """Renders the scene's camera into a multilayer EXR; its channels by name ("ViewLayer.Depth.Z", ...)."""
     sc.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
-    return hio.read_exr(path)
+    return hairrecon.read_exr(str(path))
+
+
+def write_depth(path: Path, d: np.ndarray):
+    """A depth map as the capture stores it: 32-bit float OpenEXR, R = G = B = depth."""
+    d = np.asarray(d, np.float32)
+    hairrecon.write_image(str(path), np.stack([d, d, d], axis=2))
 
 
 def depth_exr(path: Path, z: np.ndarray):
     """Depth along the optical axis in metres, 0 where no surface; R = G = B = depth."""
-    z = np.where(z < 1e9, z, 0.0).astype(np.float32)
-    hio.write_exr(path, {"R": z, "G": z, "B": z})
+    write_depth(path, np.where(z < 1e9, z, 0.0))
+
+
+def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
+    """Scene-linear float RGB to 8-bit sRGB (Blender's "Standard" view transform), clipped."""
+    return np.round(linear_to_srgb(rgb) * 255.0).astype(np.uint8)
 
 
 def photo_fusion_depth(depth: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -441,16 +441,17 @@ def main(argv=None):
     import bpy  # noqa: PLC0415  (imported late so that --help works without Blender)
     import mathutils  # noqa: F401, PLC0415
 
-    pts, counts = hio.read_hair(a.hair)
-    pts = pts.astype(np.float64)
+    # One-point strands (some .hair files have them) cannot be drawn: they are dropped.
+    pts, counts = hairrecon.read_strands(str(a.hair), skip_short_strands=True)
+    pts, counts = pts.astype(np.float64), counts.astype(np.int64)
     axes = a.hair_axes or ("x,-z,y" if a.hair_up == "y" else "x,y,z")
     pts = map_axes(pts, axes) * a.hair_scale + np.asarray(a.hair_offset)
-    head_v, head_f = hio.read_ply(a.head)
+    head_v = hairrecon.read_mesh(str(a.head))["vertices"].astype(np.float64)
     out = a.out.resolve()
     for sub in ("images", "masks", "gt/orientation", "gt/depth", "fusion/depth", "_tmp"):
         (out / sub).mkdir(parents=True, exist_ok=True)
     if not a.skip_photos:
-        hio.write_hair(out / "gt" / "strands.hair", pts, counts, info="hairrecon render_synthetic.py ground truth")
+        hairrecon.write_strands(str(out / "gt" / "strands.hair"), pts.astype(np.float32), counts.astype(np.uint32))
         shutil.copyfile(a.head, out / "head.ply")
         if a.scalp:
             shutil.copyfile(a.scalp, out / "scalp.ply")
@@ -482,20 +483,18 @@ def main(argv=None):
         sc.camera = ob
         ex = render_exr(bpy, sc, out / "_tmp" / f"{name}.exr")
         rgb = np.stack([ex[f"ViewLayer.Combined.{c}"] for c in "RGB"], axis=2)
-        hio.write_png(out / "images" / f"{name}.png", hio.linear_to_srgb8(rgb))
+        hairrecon.write_image(str(out / "images" / f"{name}.png"), linear_to_srgb8(rgb))
         o = np.stack([ex[f"ViewLayer.orient.{c}"] for c in "RGB"], axis=2)
         cov = np.clip(o[:, :, 2], 0.0, 1.0)
-        hio.write_png(out / "masks" / f"{name}.png", np.round(cov * 65535).astype(np.uint16))
+        hairrecon.write_image(str(out / "masks" / f"{name}.png"), np.round(cov * 65535).astype(np.uint16))
         vec = o[:, :, :2]
         nrm = np.linalg.norm(vec, axis=2)
         hair_px = cov > 0
         unit = np.where(nrm[:, :, None] > 1e-12, vec / np.maximum(nrm, 1e-12)[:, :, None], 0.0)
         unit[~hair_px] = 0.0
         coherence = np.where(hair_px, np.clip(nrm / np.maximum(cov, 1e-12), 0.0, 1.0), 0.0)
-        hio.write_exr(
-            out / "gt" / "orientation" / f"{name}.exr",
-            {"R": unit[:, :, 0], "G": unit[:, :, 1], "B": hair_px.astype(np.float32), "A": coherence},
-        )
+        orientation = np.stack([unit[:, :, 0], unit[:, :, 1], hair_px, coherence], axis=2).astype(np.float32)
+        hairrecon.write_image(str(out / "gt" / "orientation" / f"{name}.exr"), orientation)  # R G B A
         depth_exr(out / "gt" / "depth" / f"{name}.exr", ex["ViewLayer.Depth.Z"])
         print(
             f"  view {n + 1}/{len(views)} {name}: {time.time() - t0:.1f} s, hair pixels {int(hair_px.sum())}",
@@ -508,7 +507,7 @@ def main(argv=None):
     fusion = a.fusion
     coverage = None
     if a.only_view is None:
-        masks = [hio.read_png(out / "masks" / f"{name}.png")[:, :, 0] for name, *_ in cams]
+        masks = [hairrecon.read_image(str(out / "masks" / f"{name}.png")) for name, *_ in cams]
         coverage = mean_hair_coverage(masks)
         if fusion == "auto":
             fusion = "photo" if coverage >= PHOTO_FUSION_MIN_COVERAGE else "ribbons"
@@ -516,15 +515,14 @@ def main(argv=None):
     roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]
     # Ribbons must close the gaps between strands AND cover a pixel, or the single sample per
     # pixel sees through them and the fusion carves the hair away.
-    pixel = a.distance / float(cams[0][2][0, 0])
+    pixel = a.distance / float(cams[0][2].K[0, 0])
     fr = a.fusion_radius_mm * 1e-3 if a.fusion_radius_mm else max(0.5 * median_root_spacing(roots), 0.5 * pixel)
     fr = max(fr, a.radius_mm * 1e-3)
     t_fusion = time.time()
     if a.only_view is None and fusion == "photo":
         for (name, *_), m in zip(cams, masks):
-            g = hio.read_exr(out / "gt" / "depth" / f"{name}.exr")["R"]
-            d = photo_fusion_depth(g, m)
-            hio.write_exr(out / "fusion" / "depth" / f"{name}.exr", {"R": d, "G": d, "B": d})
+            g = hairrecon.read_exr(str(out / "gt" / "depth" / f"{name}.exr"))["R"]
+            write_depth(out / "fusion" / "depth" / f"{name}.exr", photo_fusion_depth(g, m))
         print(f"  fusion depth maps ({a.views} views, from the photographs' depth): {time.time() - t_fusion:.1f} s")
     elif a.only_view is None:
         set_radius(hair.data, fr)
@@ -555,24 +553,19 @@ def main(argv=None):
                 "name": name,
                 "image": f"images/{name}.png",
                 "mask": f"masks/{name}.png",
-                "width": w,
-                "height": h,
-                "K": k.tolist(),
-                "R": r.tolist(),
-                "t": t.tolist(),
+                **pin.to_json(),  # width, height, K, R, t
                 "gt_orientation": f"gt/orientation/{name}.exr",
                 "gt_depth": f"gt/depth/{name}.exr",
             }
-            for i, (name, _ob, k, r, t) in enumerate(cams)
+            for i, (name, _ob, pin) in enumerate(cams)
             if i in views
         ],
         "raw_mesh": "raw_mesh.ply",
         "head_mesh": "head.ply",
+        "scalp_mesh": "scalp.ply" if a.scalp else None,
         "gt_strands": "gt/strands.hair",
     }
-    if a.scalp:
-        spec["scalp_mesh"] = "scalp.ply"
-    (out / "capture.json").write_text(json.dumps(spec, indent=2))
+    hairrecon.write_capture(str(out), spec)  # checked against the schema (rust/core/src/capture.rs)
     meta = {
         "hair": str(a.hair),
         "strands": int(len(counts)),

@@ -12,7 +12,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
-from .core.camera import BlenderCamera, CameraInputError, opencv_from_blender
+from .core.camera import CameraInputError, blender_camera, opencv_from_blender
 from .core.capture import (
     CaptureInputError,
     MeshData,
@@ -23,27 +23,6 @@ from .core.capture import (
     submesh,
 )
 from .core.surface import scalp_uv
-
-
-def blender_camera(obj: bpy.types.Object, scene: bpy.types.Scene) -> BlenderCamera:
-    cam = obj.data
-    r = scene.render
-    return BlenderCamera(
-        name=obj.name,
-        matrix_world=np.array(obj.matrix_world, dtype=np.float64),
-        lens=cam.lens,
-        sensor_width=cam.sensor_width,
-        sensor_height=cam.sensor_height,
-        sensor_fit=cam.sensor_fit,
-        shift_x=cam.shift_x,
-        shift_y=cam.shift_y,
-        resolution_x=r.resolution_x,
-        resolution_y=r.resolution_y,
-        resolution_percentage=r.resolution_percentage,
-        pixel_aspect_x=r.pixel_aspect_x,
-        pixel_aspect_y=r.pixel_aspect_y,
-        type=cam.type,
-    )
 
 
 def cameras_of(collection: Optional[bpy.types.Collection]) -> list:

@@ -139,7 +139,7 @@ class Session:
             capture_dir, out_dir = root / "capture", root / "result"
             capture_dir.mkdir()
         try:
-            write_capture(capture_dir, views, raw, hr.write_mesh, head_mesh=head, scalp_mesh=scalp)
+            write_capture(capture_dir, views, raw, hr, head_mesh=head, scalp_mesh=scalp)
             hr.load_capture(str(capture_dir))
         except CaptureInputError as e:
             cls._remove(root, keep)

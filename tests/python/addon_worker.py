@@ -19,17 +19,12 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "scripts"))
-import _hairio as hio  # noqa: E402  (the repository's PNG writer, 8- and 16-bit)
+import addon_core  # noqa: E402  (the extension's bpy-free core as hairrecon_addon_core)
 
 
 def load_core_camera():
-    """addon/hairrecon/core/camera.py as a plain module (it is bpy-free)."""
-    path = ROOT / "addon" / "hairrecon" / "core" / "camera.py"
-    spec = importlib.util.spec_from_file_location("hairrecon_core_camera", path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    """addon/hairrecon/core/camera.py (it is bpy-free), from the repository."""
+    return addon_core.load("camera")
 
 
 # --- camera conversion ----------------------------------------------------------------------------
@@ -701,7 +696,6 @@ def task_bad_inputs(p):
 
     pkg = extension_package()
     Session = import_module(pkg.__name__ + ".session").Session
-    capmod = import_module(pkg.__name__ + ".core.capture")
     import hairrecon
 
     def prepared(label, fn):
@@ -731,8 +725,8 @@ def task_bad_inputs(p):
     def folders(o):
         (tmp / "photos").mkdir(exist_ok=True)
         (tmp / "masks").mkdir(exist_ok=True)
-        capmod.write_png(tmp / "photos" / "cam0.png", photo)
-        hio.write_png(tmp / "masks" / "cam0.png", mask16)
+        hairrecon.write_image(str(tmp / "photos" / "cam0.png"), photo)
+        hairrecon.write_image(str(tmp / "masks" / "cam0.png"), mask16)
         o["cam"].data.background_images.clear()
         s = bpy.context.scene.hairrecon
         s.photo_folder, s.mask_folder = str(tmp / "photos"), str(tmp / "masks")

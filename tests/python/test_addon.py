@@ -9,71 +9,45 @@ HAIRRECON_WHEEL to package an already built wheel). Reconstructions use small co
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
 import sys
 import zipfile
-import zlib
 from pathlib import Path
 
+import hairrecon
 import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from addon_harness import PYTHON, ROOT, run_worker  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "scripts"))
+import addon_core  # noqa: E402
+
 # small counts and few DR steps keep the tests fast
 SMALL = dict(guides=64, children=400, dr_iters_guides=4, dr_iters_children=2)
 
 
 def load_core():
-    """addon/hairrecon/core as a package named hairrecon_addon_core (it needs no bpy)."""
-    name = "hairrecon_addon_core"
-    if name in sys.modules:
-        return sys.modules[name]
-    core = ROOT / "addon" / "hairrecon" / "core"
-    spec = importlib.util.spec_from_file_location(name, core / "__init__.py", submodule_search_locations=[str(core)])
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    """addon/hairrecon/core as the package hairrecon_addon_core (it needs no bpy; scripts/addon_core.py)."""
+    return addon_core.load()
 
 
-def read_png(path):
-    """Minimal PNG reader for 8-bit, filter-0 images as written by core.capture.write_png."""
-    data = Path(path).read_bytes()
-    pos, idat, ihdr = 8, b"", None
-    while pos < len(data):
-        n = int.from_bytes(data[pos:pos + 4], "big")
-        tag = data[pos + 4:pos + 8]
-        body = data[pos + 8:pos + 8 + n]
-        if tag == b"IHDR":
-            ihdr = body
-        elif tag == b"IDAT":
-            idat += body
-        pos += 12 + n
-    w, h = int.from_bytes(ihdr[:4], "big"), int.from_bytes(ihdr[4:8], "big")
-    c = {0: 1, 4: 2, 2: 3, 6: 4}[ihdr[9]]
-    raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + w * c)
-    assert (raw[:, 0] == 0).all()
-    return raw[:, 1:].reshape(h, w, c)
+def png_size(path) -> tuple[int, int]:
+    """(width, height) of an image file."""
+    h, w = hairrecon.read_image(str(path)).shape[:2]
+    return w, h
 
 
 # --- bpy-free core, in this process -------------------------------------------------------------
 
 
-def test_core_png_and_pixels_roundtrip(tmp_path):
+def test_core_pixels_to_uint8():
     load_core()
-    from hairrecon_addon_core.capture import pixels_to_uint8, png_size, write_png
+    from hairrecon_addon_core.capture import pixels_to_uint8
 
-    rng = np.random.default_rng(3)
-    for c in (1, 3, 4):
-        img = rng.integers(0, 256, (7, 5, c), dtype=np.uint8)
-        write_png(tmp_path / f"a{c}.png", img)
-        assert png_size(tmp_path / f"a{c}.png") == (5, 7)
-        assert np.array_equal(read_png(tmp_path / f"a{c}.png"), img)
     # Blender pixels are bottom row first, RGBA float; byte images keep their values
     flat = np.zeros((2, 3, 4), np.float32)
     flat[0, :, 0] = 1.0  # bottom row red
@@ -133,19 +107,25 @@ def test_core_write_capture_and_errors(tmp_path):
     cam = PinholeCamera(K, np.eye(3), np.array([0, 0, 1.0]), 64, 96)
     photo = np.full((192, 128, 3), 200, np.uint8)  # twice the render size: K is rescaled
     mesh = MeshData("raw", np.eye(3, dtype=np.float32), np.array([[0, 1, 2]], np.uint32))
-    written = []
-    path = write_capture(tmp_path / "cap", [ViewInput("Camera.001", cam, photo)], mesh,
-                         lambda p, v, t, uvs=None: written.append(Path(p).name) or Path(p).write_text("x"))
+    photo[10:20, 30:40] = (1, 2, 3)
+    mask = np.zeros((192, 128, 1), np.uint8)
+    mask[50:60] = 255
+    path = write_capture(tmp_path / "cap", [ViewInput("Camera.001", cam, photo, mask=mask)], mesh, hairrecon)
+    assert path == tmp_path / "cap" / "capture.json"
     spec = json.loads(path.read_text())
     view = spec["views"][0]
     assert (view["width"], view["height"], view["image"]) == (128, 192, "images/Camera.001.png")
+    assert view["mask"] == "masks/Camera.001.png"
     assert np.allclose(view["K"], [[200, 0, 63.5], [0, 200, 95.5], [0, 0, 1]])
-    assert written == ["raw_mesh.ply"] and spec["raw_mesh"] == "raw_mesh.ply"
-    assert read_png(tmp_path / "cap" / view["image"]).shape == (192, 128, 3)
+    assert spec["raw_mesh"] == "raw_mesh.ply" and "head_mesh" not in spec and "scalp_mesh" not in spec
+    assert np.array_equal(hairrecon.read_image(str(tmp_path / "cap" / view["image"])), photo)
+    assert np.array_equal(hairrecon.read_image(str(tmp_path / "cap" / view["mask"])), mask[:, :, 0])
+    assert np.array_equal(hairrecon.read_mesh(str(tmp_path / "cap" / "raw_mesh.ply"))["triangles"], [[0, 1, 2]])
+    assert hairrecon.load_capture(str(tmp_path / "cap"))["views"] == ["Camera.001"]
 
     def err(views, m=mesh):
         with pytest.raises(CaptureInputError) as e:
-            write_capture(tmp_path / "bad", views, m, lambda *a, **k: None)
+            write_capture(tmp_path / "bad", views, m, hairrecon)
         return str(e.value)
 
     assert "no cameras" in err([])
@@ -434,8 +414,6 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture,
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     # the pictures: ground truth, before and after DR at the height asked, three panels wide in the pair,
     # and no two the same picture
-    load_core()
-    from hairrecon_addon_core.capture import png_size  # None for a file that is not a PNG
     sizes = {name: png_size(out / f"{name}.png") for name in ("gt", "before", "after", "pair")}
     (w, h) = sizes["after"]
     assert sizes["before"] == sizes["gt"] == (w, h) and abs(h - 64) <= 1, sizes

@@ -18,28 +18,33 @@ not:
 | init      | strands: directed F1 within 3 of undirected      | 0.0      | <= 1.5  |
 | init      | guides: undirected F1 at 2 mm / 20 deg           | 37.5     | >= 35   |
 
-(The orient2d to direction figures as measured 2026-11-21; the init row as measured 2026-11-24, session 14.)
+(The orient2d to direction figures as measured 2026-11-21; the init row as measured at commit 33926ba.)
 
-Session 4 changed the direction solver (least squares over the graph), let guides trace the 3D points
-and limited a step's turn to 40 degrees: strands 51.3 -> 56.1, guides 30.2 -> 36.3 (tracing alone,
-without the turn limit, gave 49.3 and 34.1 here). Session 6 blends children from 2 guides instead of 4:
-strands 56.1 -> 56.2 undirected, 53.8 -> 53.3 directed (the gap 2.3 -> 2.9); then children blend only
-guides at least 0.3 of the median guide long: 54.3 undirected, 50.8 directed (gap 3.5) on this sparse
-capture, against +2.1 on the paper curly capture (50.7 -> 52.8) and -0.1 on paper straight, so the floors
-moved to 52 and 4.0. Session 7 smooths the guides along which the 3D points agree (straight hair):
-strands 54.3 -> 57.7 undirected, 50.8 -> 54.4 directed (gap 3.3), guides 36.3 -> 38.5; floors 55 and 35.
-Session 11 smooths those guides by 20 mm instead of 4 mm, and a child whose two guides leave the scalp on
-either side of a parting follows the nearer one alone: strands 57.7 -> 56.7 undirected, 54.4 -> 53.5 directed
-(gap 3.2), guides 38.5 -> 37.4 on this sparse capture (paper straight before DR: see the README); the floors
-stay. Session 12 lets a root that the raw mesh's sign puts outside the hair start free of the outer surface
-on straight hair: strands 56.7 -> 56.9 undirected, 53.5 -> 53.7 directed, guides 37.4 -> 37.2; floors stay.
-Session 14 stops strands from climbing beyond their first 3 cm (`GrowParams::max_climb`): strands 56.9 ->
-60.0 undirected, 53.7 -> 60.0 directed (gap 3.2 -> 0.0), guides 37.2 -> 37.5; floors 55 -> 57 and the gap's
-4.0 -> 1.5. Session 26 salts the reconstruction's root seed (`roots::sample_roots`): the 2,000 guides
-(seed 0) had this capture's 2,000 ground-truth roots (seed 0) exactly. Strands 60.0 -> 60.3 undirected and
-directed, guides 37.5 -> 36.7; the floors stay. Session 40 lets growth take 1.5 times `max_length` of steps
-and cuts the smoothed guides at `max_length` (`GrowParams::grow_budget`): strands 60.3 -> 60.7 undirected,
-60.6 directed, guides 36.7 -> 38.0; the floors stay.
+How the init figures got here (each measured at the commit named):
+- a least-squares direction solver over the graph, guides that trace the 3D points, a step's turn limited
+  to 40 degrees (ba29de5): strands 51.3 -> 56.1, guides 30.2 -> 36.3 (tracing alone, without the turn
+  limit, gave 49.3 and 34.1 here);
+- children blended from 2 guides instead of 4 (ade29e2): strands 56.1 -> 56.2 undirected, 53.8 -> 53.3
+  directed (the gap 2.3 -> 2.9); then only from guides at least 0.3 of the median guide long (cf7dab4): 54.3
+  undirected, 50.8 directed (gap 3.5) on this sparse capture, against +2.1 on the paper curly capture
+  (50.7 -> 52.8) and -0.1 on paper straight, so the floors moved to 52 and 4.0;
+- guides smoothed along which the 3D points agree, straight hair (2dd7962): strands 54.3 -> 57.7
+  undirected, 50.8 -> 54.4 directed (gap 3.3), guides 36.3 -> 38.5; floors 55 and 35;
+- those guides smoothed by 20 mm instead of 4 mm, and a child whose two guides leave the scalp on either
+  side of a parting follows the nearer one alone (8a37645, 0659987): strands 57.7 -> 56.7 undirected,
+  54.4 -> 53.5 directed (gap 3.2), guides 38.5 -> 37.4 on this sparse capture (paper straight before DR:
+  see the README); the floors stay;
+- a root that the raw mesh's sign puts outside the hair starts free of the outer surface on straight
+  hair (7bc6f73): strands 56.7 -> 56.9 undirected, 53.5 -> 53.7 directed, guides 37.4 -> 37.2; floors stay;
+- strands stop climbing beyond their first 3 cm (`GrowParams::max_climb`, 33926ba): strands 56.9 -> 60.0
+  undirected, 53.7 -> 60.0 directed (gap 3.2 -> 0.0), guides 37.2 -> 37.5; floors 55 -> 57 and the gap's
+  4.0 -> 1.5;
+- the reconstruction's root seed salted (`roots::sample_roots`; 5a88601): the 2,000 guides (seed 0) had
+  this capture's 2,000 ground-truth roots (seed 0) exactly. Strands 60.0 -> 60.3 undirected and directed,
+  guides 37.5 -> 36.7; the floors stay;
+- growth takes 1.5 times `max_length` of steps and the smoothed guides are cut at `max_length`
+  (`GrowParams::grow_budget`; d3ddc91): strands 60.3 -> 60.7 undirected, 60.6 directed, guides
+  36.7 -> 38.0; the floors stay.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ Each check prints its figure (run pytest with -s to see them):
   within 1 mm of gt/depth) lie within 3 mm of raw_mesh.ply: at least 95% of them where the mesh is
   fused from the photographs' depth (dense hair), 70% where the hair is too sparse to look like a
   surface and the mesh is the ribbon envelope (the test preset; see RAW_MESH_BOUND);
-- the capture loads with the Rust loader (``hairrecon`` Python module if built, else the CLI).
+- the capture loads with the Rust loader (the ``hairrecon`` Python module and the CLI).
 """
 
 from __future__ import annotations
@@ -21,10 +21,9 @@ import os
 import subprocess
 from pathlib import Path
 
+import hairrecon
 import numpy as np
 import pytest
-
-import _hairio as hio
 
 # Test one in STEP ground-truth points (plenty: tens of thousands per view). Raise it for
 # paper-preset captures (HAIRRECON_TEST_STEP=50 with HAIRRECON_TEST_CAPTURE=...).
@@ -37,13 +36,41 @@ def _views(cap: Path):
         yield v, np.array(v["K"]), np.array(v["R"]), np.array(v["t"])
 
 
+def _strands(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Strands as (points float64 (N, 3), counts int64 (S,))."""
+    pts, counts = hairrecon.read_strands(str(path))
+    return pts.astype(np.float64), counts.astype(np.int64)
+
+
+def _mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A triangle mesh as (vertices float64 (V, 3), triangles int64 (T, 3))."""
+    m = hairrecon.read_mesh(str(path))
+    return m["vertices"].astype(np.float64), m["triangles"].astype(np.int64)
+
+
+def _offsets(counts: np.ndarray) -> np.ndarray:
+    """Start index of each strand in the flat points array (length S + 1)."""
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+
+def _tangents(points: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Unit tangents per point (central differences inside a strand, one-sided at its ends)."""
+    off = _offsets(counts)
+    nxt = np.arange(len(points)) + 1
+    prv = np.arange(len(points)) - 1
+    nxt[off[1:] - 1] = off[1:] - 1
+    prv[off[:-1]] = off[:-1]
+    d = points[nxt] - points[prv]
+    return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+
+
 def _gt(cap: Path):
     """A seeded random 1/STEP of the ground-truth points (a regular stride would alias with the
     strands' point count: every 50th of 100-point strands is half roots) and their tangents."""
-    pts, counts = hio.read_hair(cap / "gt" / "strands.hair")
-    tan = hio.strand_tangents(pts.astype(np.float64), counts)
+    pts, counts = _strands(cap / "gt" / "strands.hair")
+    tan = _tangents(pts, counts)
     pick = np.sort(np.random.default_rng(0).choice(len(pts), size=len(pts) // STEP, replace=False))
-    return pts.astype(np.float64)[pick], tan[pick]
+    return pts[pick], tan[pick]
 
 
 def _project(k, r, t, p):
@@ -62,7 +89,7 @@ def _head_bvh(cap: Path):
     import bpy  # noqa: F401  (makes mathutils importable)
     from mathutils.bvhtree import BVHTree
 
-    v, f = hio.read_ply(cap / "head.ply")
+    v, f = _mesh(cap / "head.ply")
     return BVHTree.FromPolygons(v.tolist(), f.tolist())
 
 
@@ -92,7 +119,7 @@ def test_mask_covers_unhidden_strand_points(test_capture):
         ui, ok = _inside(uv, w, h)
         centre = -r.T @ t
         vis = ok & ~_hidden_by_head(bvh, centre, pts)
-        m = hio.read_png(cap / v["mask"])[:, :, 0] > 0
+        m = hairrecon.read_image(str(cap / v["mask"])) > 0
         dil = m.copy()
         dil[1:] |= m[:-1]
         dil[:-1] |= m[1:]
@@ -108,10 +135,9 @@ def test_mask_covers_unhidden_strand_points(test_capture):
 
 def _dense_gt(cap: Path, sub: int = 4):
     """Ground-truth strands resampled with `sub` points per segment (linear), with tangents."""
-    p, c = hio.read_hair(cap / "gt" / "strands.hair")
-    p = p.astype(np.float64)
-    tan = hio.strand_tangents(p, c)
-    off = hio.strand_offsets(c)
+    p, c = _strands(cap / "gt" / "strands.hair")
+    tan = _tangents(p, c)
+    off = _offsets(c)
     last = np.zeros(len(p), bool)
     last[off[1:] - 1] = True
     a = np.flatnonzero(~last)
@@ -143,8 +169,8 @@ def test_orientation_matches_projected_tangents(test_capture):
     radius = info["radius_mm"] * 1e-3
     sub = 8 if STEP <= 2 else 3  # points per segment; lighter for paper-preset captures
     pts, tans = _dense_gt(cap, sub)
-    p, c = hio.read_hair(cap / "gt" / "strands.hair")
-    bit = np.linalg.norm(np.diff(p.astype(np.float64), axis=0), axis=1)
+    p, _ = _strands(cap / "gt" / "strands.hair")
+    bit = np.linalg.norm(np.diff(p, axis=0), axis=1)
     bit = float(np.median(bit[bit > 0])) / sub  # the length of strand each point stands for
     bvh = _head_bvh(cap)
     errs, covs = [], []
@@ -158,7 +184,7 @@ def test_orientation_matches_projected_tangents(test_capture):
         ok &= pc[:, 2] > 0
         idx = np.flatnonzero(ok)
         # The head hides a point only if it lies behind what the pixel's sample hit.
-        gd = hio.read_exr(cap / v["gt_depth"])
+        gd = hairrecon.read_exr(str(cap / v["gt_depth"]))
         gd = gd.get("Y", gd.get("R"))
         cand = idx[pc[idx, 2] > gd[ui[idx, 1], ui[idx, 0]] + 1e-3]
         hidden = np.zeros(len(pts), bool)
@@ -189,7 +215,7 @@ def test_orientation_matches_projected_tangents(test_capture):
                 q = py[m] * w + px[m]
                 c2 += np.bincount(q, cos2[m] * f[m], w * h)
                 s2 += np.bincount(q, sin2[m] * f[m], w * h)
-        o = hio.read_exr(cap / v["gt_orientation"])
+        o = hairrecon.read_exr(str(cap / v["gt_orientation"]))
         has = (np.hypot(c2, s2) > 0) & (o["B"].ravel() > 0)
         ref = 0.5 * np.arctan2(s2[has], c2[has])
         got = 0.5 * np.arctan2(o["G"].ravel()[has], o["R"].ravel()[has])
@@ -197,7 +223,7 @@ def test_orientation_matches_projected_tangents(test_capture):
         e = np.degrees(np.minimum(d, np.pi - d))
         print(f"orientation {v['name']}: {len(e)} hair pixels, mean error {e.mean():.2f} deg, median {np.median(e):.2f}")
         errs.append(e)
-        covs.append(hio.read_png(cap / v["mask"])[:, :, 0].ravel()[has] / 65535.0)
+        covs.append(hairrecon.read_image(str(cap / v["mask"])).ravel()[has] / 65535.0)
     e, cov = np.concatenate(errs), np.concatenate(covs)
     low = cov < 0.1
     print(
@@ -216,7 +242,7 @@ def _seen_count(cap: Path, pts: np.ndarray, depth_dir: str | None, tol: float) -
         uv, pc = _project(k, r, t, pts)
         ui, ok = _inside(uv, v["width"], v["height"])
         path = cap / depth_dir / f"{v['name']}.exr" if depth_dir else cap / v["gt_depth"]
-        d = hio.read_exr(path)
+        d = hairrecon.read_exr(str(path))
         d = d.get("Y", d.get("R"))
         sel = np.flatnonzero(ok)
         seen = np.abs(d[ui[sel, 1], ui[sel, 0]] - pc[sel, 2]) < tol
@@ -245,7 +271,7 @@ def test_raw_mesh_is_near_the_seen_hair(test_capture):
 
     cap = test_capture
     pts, _ = _gt(cap)
-    v, f = hio.read_ply(cap / "raw_mesh.ply")
+    v, f = _mesh(cap / "raw_mesh.ply")
     bvh = BVHTree.FromPolygons(v.tolist(), f.tolist())
     info = json.loads((cap / "render_info.json").read_text())
     fusion = info.get("fusion", "ribbons")
@@ -265,7 +291,7 @@ def test_raw_mesh_is_near_the_seen_hair(test_capture):
         f"{(signed <= -3e-3).mean():.4f} more than 3 mm outside"
     )
     deep = sel[signed >= 3e-3]
-    hv, hf = hio.read_ply(cap / "head.ply")
+    hv, hf = _mesh(cap / "head.ply")
     head = BVHTree.FromPolygons(hv.tolist(), hf.tolist())
     on_scalp = np.mean([head.find_nearest(Vector(p.tolist()))[3] < 3e-3 for p in deep]) if len(deep) else 0.0
     print(f"raw mesh: of the points more than 3 mm inside, {on_scalp:.3f} lie within 3 mm of the head")
@@ -282,12 +308,12 @@ def test_depth_is_planar_depth_of_the_surface(test_capture):
     from mathutils.bvhtree import BVHTree
 
     cap = test_capture
-    hv, hf = hio.read_ply(cap / "head.ply")
+    hv, hf = _mesh(cap / "head.ply")
     bvh = BVHTree.FromPolygons(hv.tolist(), hf.tolist())
     v, k, r, t = next(_views(cap))
-    d = hio.read_exr(cap / v["gt_depth"])
+    d = hairrecon.read_exr(str(cap / v["gt_depth"]))
     d = d.get("Y", d.get("R"))
-    m = hio.read_png(cap / v["mask"])[:, :, 0]
+    m = hairrecon.read_image(str(cap / v["mask"]))
     ys, xs = np.nonzero((d > 0) & (m == 0))
     rng = np.random.default_rng(0)
     pick = rng.choice(len(ys), size=min(2000, len(ys)), replace=False)
@@ -302,17 +328,9 @@ def test_depth_is_planar_depth_of_the_surface(test_capture):
 
 def test_capture_loads_with_the_rust_loader(test_capture, tmp_path):
     n_views = len(json.loads((test_capture / "capture.json").read_text())["views"])
-    try:
-        import hairrecon  # noqa: PLC0415
-
-        loader = getattr(hairrecon, "load_capture", None)
-    except ImportError:
-        loader = None
-    if loader is not None:
-        c = loader(str(test_capture))
-        print(f"loader: hairrecon.load_capture: {len(c['views'])} views")
-        assert len(c["views"]) == n_views
-        return
+    c = hairrecon.load_capture(str(test_capture))
+    print(f"loader: hairrecon.load_capture: {len(c['views'])} views")
+    assert len(c["views"]) == n_views
     # The CLI: fuse-depth --check-capture runs hairrecon_core::capture::Capture::load on the folder.
     from conftest import hairrecon_bin
 

@@ -14,7 +14,10 @@ Blender side (checked on bpy 5.0.1, see blender-notes.md "Cameras -> OpenCV K, R
   cy = (H - 1)/2 + shift_y * view / pa.
 - M = matrix_world with its axes normalised; R = diag(1, -1, -1) M[:3,:3]^T; t = -R M[:3,3].
 
-All functions take plain numbers / nested lists / numpy arrays, never bpy objects.
+All functions take plain numbers / nested lists / numpy arrays, never bpy objects, except
+:func:`blender_camera`, which reads those numbers from a camera object and a scene (any objects with
+their attributes; this module does not import bpy). This is the one Blender-to-OpenCV conversion of
+the project: the add-on, ``scripts/render_synthetic.py`` and the tests use it.
 """
 
 from __future__ import annotations
@@ -75,6 +78,29 @@ class PinholeCamera:
             "R": [[float(v) for v in row] for row in self.R],
             "t": [float(v) for v in self.t],
         }
+
+
+def blender_camera(obj, scene) -> BlenderCamera:
+    """What :func:`opencv_from_blender` needs from a Blender camera object and its scene's render
+    settings (``bpy.types.Object`` and ``bpy.types.Scene``, read by attribute)."""
+    cam = obj.data
+    r = scene.render
+    return BlenderCamera(
+        name=obj.name,
+        matrix_world=np.array(obj.matrix_world, dtype=np.float64),
+        lens=cam.lens,
+        sensor_width=cam.sensor_width,
+        sensor_height=cam.sensor_height,
+        sensor_fit=cam.sensor_fit,
+        shift_x=cam.shift_x,
+        shift_y=cam.shift_y,
+        resolution_x=r.resolution_x,
+        resolution_y=r.resolution_y,
+        resolution_percentage=r.resolution_percentage,
+        pixel_aspect_x=r.pixel_aspect_x,
+        pixel_aspect_y=r.pixel_aspect_y,
+        type=cam.type,
+    )
 
 
 def render_size(resolution_x: int, resolution_y: int, percentage: int) -> tuple[int, int]:

@@ -1,10 +1,10 @@
 """Writing a capture folder (rust/core/src/capture.rs) from data taken out of a Blender scene.
 
 The Blender layer gathers, per camera, a :class:`~.camera.PinholeCamera` and the photo's pixels, and
-per mesh its world-space vertices and triangles; this module checks them, writes PNGs and
-``capture.json``, and phrases every problem as one :class:`CaptureInputError` that names the camera,
-object or file and says how to fix it. Meshes are written by a callback (``hairrecon.write_mesh``) so
-that this module needs neither bpy nor the Rust library.
+per mesh its world-space vertices and triangles; this module checks them and phrases every problem as
+one :class:`CaptureInputError` that names the camera, object or file and says how to fix it. The files
+(PNGs, meshes, ``capture.json``) are written by the hairrecon library, passed in as ``lib`` (the
+``hairrecon`` module), so that this module imports neither bpy nor the library.
 """
 
 from __future__ import annotations
@@ -12,11 +12,9 @@ from __future__ import annotations
 import json
 import os
 import re
-import struct
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Optional, Sequence
+from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
@@ -31,34 +29,6 @@ class CaptureInputError(ValueError):
 
 
 # --- images -------------------------------------------------------------------------------------
-
-
-def write_png(path: os.PathLike | str, pixels: np.ndarray) -> None:
-    """Writes an 8-bit PNG from a (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8 array, top row first."""
-    a = np.asarray(pixels)
-    if a.dtype != np.uint8:
-        raise TypeError(f"write_png needs uint8 pixels, got {a.dtype}")
-    if a.ndim == 2:
-        a = a[:, :, None]
-    h, w, c = a.shape
-    color_type = {1: 0, 2: 4, 3: 2, 4: 6}[c]
-    raw = np.concatenate([np.zeros((h, 1), np.uint8), a.reshape(h, w * c)], axis=1).tobytes()
-
-    def chunk(tag: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
-
-    ihdr = struct.pack(">IIBBBBB", w, h, 8, color_type, 0, 0, 0)
-    with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
-
-
-def png_size(path: os.PathLike | str) -> Optional[tuple[int, int]]:
-    """(width, height) of a PNG file from its header, or None if it is not a PNG."""
-    with open(path, "rb") as f:
-        head = f.read(24)
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
-        return None
-    return struct.unpack(">II", head[16:24])
 
 
 def linear_to_srgb(x: np.ndarray) -> np.ndarray:
@@ -96,9 +66,9 @@ def hair_color(views: Sequence["ViewInput"], min_coverage: int = 230, max_sample
 
 # The Principled Hair BSDF's direct colouring C (grey) against the median linear value of the fully
 # covered hair pixels it renders to, under a uniform white environment of strength 1 (the synthetic
-# captures' light): `.venv/bin/python scripts/hair_color_curve.py out/demo/capture` on the demo's
-# capture (20,000 wavy strands, 16 views of 171x256 px), session 33. The response is far from the
-# identity: C = 0.1 renders to 0.25, and the specular lobe keeps dark hair above 0.04.
+# captures' light), measured at commit ff68f35 by `.venv/bin/python scripts/hair_color_curve.py
+# out/demo/capture` (now research/scripts/) on the demo's capture of then (20,000 wavy strands, 16 views
+# of 171x256 px). The response is far from the identity: C = 0.1 renders to 0.25, and the specular lobe keeps dark hair above 0.04.
 DIRECT_COLOR_RESPONSE = ((0.005, 0.0429), (0.01, 0.0584), (0.02, 0.0847), (0.05, 0.1539), (0.1, 0.2490),
                          (0.2, 0.4059), (0.35, 0.5651), (0.5, 0.6594), (0.7, 0.7264), (0.9, 0.7465))
 
@@ -254,13 +224,14 @@ def write_capture(
     directory: os.PathLike | str,
     views: Sequence[ViewInput],
     raw_mesh: MeshData,
-    write_mesh: Callable[..., None],
+    lib,
     head_mesh: Optional[MeshData] = None,
     scalp_mesh: Optional[MeshData] = None,
 ) -> Path:
     """Writes ``directory/capture.json`` with images/, masks/ and the meshes; returns its path.
 
-    ``write_mesh(path, vertices, triangles, uvs=None)`` writes a mesh file (``hairrecon.write_mesh``).
+    ``lib`` is the ``hairrecon`` module: its ``write_image``, ``write_mesh`` and ``write_capture`` (which
+    checks capture.json against the schema) write the files.
     """
     check_views(views)
     check_mesh(raw_mesh, "raw mesh")
@@ -276,7 +247,7 @@ def write_capture(
         cam = _fit_camera(v, h, w, "photo")
         stem = safe_file_stem(v.name)
         entry = {"name": v.name, "image": f"images/{stem}.png"}
-        write_png(d / entry["image"], v.photo)
+        lib.write_image(str(d / entry["image"]), np.ascontiguousarray(v.photo, dtype=np.uint8))
         if v.mask is not None:
             mh, mw = v.mask.shape[:2]
             if (mw, mh) != (w, h):
@@ -286,7 +257,7 @@ def write_capture(
                 )
             (d / "masks").mkdir(exist_ok=True)
             entry["mask"] = f"masks/{stem}.png"
-            write_png(d / entry["mask"], v.mask)
+            lib.write_image(str(d / entry["mask"]), np.ascontiguousarray(v.mask, dtype=np.uint8))
         entry.update(cam.to_json())
         entries.append(entry)
     spec = {"version": CAPTURE_VERSION, "units": "metres", "convention": "opencv", "views": entries}
@@ -297,16 +268,14 @@ def write_capture(
     ):
         if mesh is None:
             continue
-        write_mesh(
+        lib.write_mesh(
             str(d / fname),
             np.ascontiguousarray(mesh.vertices, dtype=np.float32),
             np.ascontiguousarray(mesh.triangles, dtype=np.uint32),
             uvs=None if mesh.uvs is None else np.ascontiguousarray(mesh.uvs, dtype=np.float32),
         )
         spec[key] = fname
-    path = d / "capture.json"
-    path.write_text(json.dumps(spec, indent=1))
-    return path
+    return Path(lib.write_capture(str(d), spec))
 
 
 def read_capture_json(directory: os.PathLike | str) -> dict:

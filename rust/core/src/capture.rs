@@ -22,10 +22,15 @@
 //! }
 //! ```
 //!
-//! `mask`, `head_mesh`, `scalp_mesh`, `gt_*` are optional. [`Capture::load`] checks everything a
-//! later stage relies on, once: the JSON's shape, that every named file exists, that each image has
-//! the size its view states, and that every camera is valid. Each problem is one error that names
-//! the view and the file.
+//! `mask`, `head_mesh`, `scalp_mesh`, `gt_*` are optional. [`CaptureSpec`] is this schema, the one
+//! definition of it: [`Capture::load`] reads it and [`CaptureSpec::write`] writes it (the renderer and
+//! the Blender add-on write theirs through it, from Python `hairrecon.write_capture`).
+//!
+//! Checks happen in two steps. [`CaptureSpec::validate`] checks what the JSON alone says: version,
+//! units, convention, at least one view, unique view names, no empty paths, valid cameras (finite,
+//! K a pinhole matrix, R a rotation). [`Capture::load`] does that and then checks the files: that
+//! every named file exists and that each image and mask has the size its view states. Each problem is
+//! one error that names the view and the file.
 
 use std::path::{Path, PathBuf};
 
@@ -33,6 +38,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::camera::{Camera, CameraError};
+use crate::formats::{atomic_write, FormatError, FormatErrorKind};
 
 /// The capture format version this library reads and writes.
 pub const CAPTURE_VERSION: u32 = 1;
@@ -64,6 +70,12 @@ pub enum CaptureError {
     Camera { view: String, path: PathBuf, source: CameraError },
     #[error("{path}: two views are named {view:?}; view names must be unique")]
     DuplicateView { path: PathBuf, view: String },
+    #[error("{path}: {what} is empty; give the file's path relative to the capture folder")]
+    EmptyPath { path: PathBuf, what: String },
+    #[error("{path}: {msg}")]
+    Spec { path: PathBuf, msg: String },
+    #[error("cannot write the capture: {source}")]
+    Write { source: FormatError },
 }
 
 /// One view as written in capture.json.
@@ -138,29 +150,9 @@ impl Capture {
 
     /// Validates a parsed spec whose relative paths are under `dir`; `json` names the file in errors.
     pub fn from_spec(spec: CaptureSpec, dir: &Path, json: &Path) -> Result<Self, CaptureError> {
-        if spec.version != CAPTURE_VERSION {
-            return Err(CaptureError::Version { path: json.into(), found: spec.version });
-        }
-        if spec.units != "metres" && spec.units != "meters" {
-            return Err(CaptureError::Units { path: json.into(), found: spec.units });
-        }
-        if !spec.convention.eq_ignore_ascii_case("opencv") {
-            return Err(CaptureError::Convention { path: json.into(), found: spec.convention });
-        }
-        if spec.views.is_empty() {
-            return Err(CaptureError::NoViews { path: json.into() });
-        }
-        let mut names = std::collections::HashSet::new();
+        let cameras = spec.validate(json)?;
         let mut views = Vec::with_capacity(spec.views.len());
-        for v in spec.views {
-            if !names.insert(v.name.clone()) {
-                return Err(CaptureError::DuplicateView { path: json.into(), view: v.name });
-            }
-            let camera = Camera::new(v.k, v.r, v.t, v.width, v.height).map_err(|source| CaptureError::Camera {
-                view: v.name.clone(),
-                path: json.into(),
-                source,
-            })?;
+        for (v, camera) in spec.views.into_iter().zip(cameras) {
             let image = dir.join(&v.image);
             check_image(&v.name, "image", &image, v.width, v.height)?;
             let mask = v.mask.map(|m| dir.join(m));
@@ -196,6 +188,157 @@ impl Capture {
             scalp_mesh: opt("scalp_mesh", spec.scalp_mesh)?,
             gt_strands: opt("gt_strands", spec.gt_strands)?,
         })
+    }
+}
+
+impl CaptureSpec {
+    /// Checks everything that capture.json alone tells, without looking at the files it names:
+    /// the version, units and convention, at least one view, unique view names, no empty paths, and
+    /// every camera (see [`Camera::new`]). Returns the views' cameras, in order. `json` names the
+    /// file in errors.
+    pub fn validate(&self, json: &Path) -> Result<Vec<Camera>, CaptureError> {
+        if self.version != CAPTURE_VERSION {
+            return Err(CaptureError::Version { path: json.into(), found: self.version });
+        }
+        if self.units != "metres" && self.units != "meters" {
+            return Err(CaptureError::Units { path: json.into(), found: self.units.clone() });
+        }
+        if !self.convention.eq_ignore_ascii_case("opencv") {
+            return Err(CaptureError::Convention { path: json.into(), found: self.convention.clone() });
+        }
+        if self.views.is_empty() {
+            return Err(CaptureError::NoViews { path: json.into() });
+        }
+        let empty = |what: String| CaptureError::EmptyPath { path: json.into(), what };
+        let mut names = std::collections::HashSet::new();
+        let mut cameras = Vec::with_capacity(self.views.len());
+        for v in &self.views {
+            if !names.insert(v.name.as_str()) {
+                return Err(CaptureError::DuplicateView { path: json.into(), view: v.name.clone() });
+            }
+            let files = [
+                ("image", Some(&v.image)),
+                ("mask", v.mask.as_ref()),
+                ("gt_orientation", v.gt_orientation.as_ref()),
+                ("gt_depth", v.gt_depth.as_ref()),
+            ];
+            for (what, p) in files {
+                if p.is_some_and(|p| p.as_os_str().is_empty()) {
+                    return Err(empty(format!("view {:?}: its {what}", v.name)));
+                }
+            }
+            let camera = Camera::new(v.k, v.r, v.t, v.width, v.height).map_err(|source| CaptureError::Camera {
+                view: v.name.clone(),
+                path: json.into(),
+                source,
+            })?;
+            cameras.push(camera);
+        }
+        let meshes = [
+            ("raw_mesh", Some(&self.raw_mesh)),
+            ("head_mesh", self.head_mesh.as_ref()),
+            ("scalp_mesh", self.scalp_mesh.as_ref()),
+            ("gt_strands", self.gt_strands.as_ref()),
+        ];
+        for (what, p) in meshes {
+            if p.is_some_and(|p| p.as_os_str().is_empty()) {
+                return Err(empty(what.to_string()));
+            }
+        }
+        Ok(cameras)
+    }
+
+    /// A spec from parsed JSON, strictly: errors name the view and the field (`views[2] "view_002":
+    /// missing field image`), and a field that the schema does not have (a misspelt `"gt_strand"`) is an error
+    /// rather than silently dropped. `json` names the file in errors. Does not validate; see
+    /// [`CaptureSpec::validate`].
+    pub fn from_json(value: serde_json::Value, json: &Path) -> Result<Self, CaptureError> {
+        use serde_json::Value;
+        let spec_err = |msg: String| CaptureError::Spec { path: json.into(), msg };
+        let Value::Object(mut top) = value else {
+            return Err(spec_err(format!("capture.json must be a JSON object, not {}", json_kind(&value))));
+        };
+        let views_value = match top.remove("views") {
+            Some(Value::Array(v)) => v,
+            Some(other) => {
+                return Err(spec_err(format!("\"views\" must be a list of views, not {}", json_kind(&other))))
+            }
+            None => return Err(spec_err("missing field `views`".into())),
+        };
+        let mut views = Vec::with_capacity(views_value.len());
+        for (i, v) in views_value.into_iter().enumerate() {
+            let label = match v.get("name").and_then(Value::as_str) {
+                Some(name) => format!("views[{i}] {name:?}"),
+                None => format!("views[{i}]"),
+            };
+            let view: ViewSpec = serde_json::from_value(v.clone()).map_err(|e| spec_err(format!("{label}: {e}")))?;
+            check_unknown_fields(&v, &view).map_err(|f| spec_err(format!("{label}: {f}")))?;
+            views.push(view);
+        }
+        top.insert("views".into(), Value::Array(Vec::new()));
+        let top = Value::Object(top);
+        let mut spec: CaptureSpec = serde_json::from_value(top.clone()).map_err(|e| spec_err(e.to_string()))?;
+        check_unknown_fields(&top, &spec).map_err(spec_err)?;
+        spec.views = views;
+        Ok(spec)
+    }
+
+    /// The file [`CaptureSpec::write`] writes for `path`: `path` itself when it ends in `.json` and is
+    /// not a folder, else the folder's `capture.json`.
+    pub fn json_path(path: &Path) -> PathBuf {
+        if !path.is_dir() && path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
+            path.to_path_buf()
+        } else {
+            path.join("capture.json")
+        }
+    }
+
+    /// Validates the spec ([`CaptureSpec::validate`]) and writes it as capture.json, atomically (an
+    /// error leaves no file and keeps an existing one). `path` is the capture folder (created if
+    /// missing; the file is its `capture.json`) or, when it ends in `.json` and is not a folder, the
+    /// file itself. The files the spec names need not exist yet: [`Capture::load`] checks them.
+    /// Returns the path written.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<PathBuf, CaptureError> {
+        let json = Self::json_path(path.as_ref());
+        self.validate(&json)?;
+        let write_err = |source: FormatError| CaptureError::Write { source };
+        if let Some(dir) = json.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| write_err(FormatError::from(e).in_file(dir)))?;
+        }
+        let mut text = serde_json::to_string_pretty(self)
+            .map_err(|e| write_err(FormatError::from(FormatErrorKind::Invalid(e.to_string())).in_file(&json)))?;
+        text.push('\n');
+        atomic_write(&json, |w| {
+            use std::io::Write;
+            Ok(w.write_all(text.as_bytes())?)
+        })
+        .map_err(write_err)?;
+        Ok(json)
+    }
+}
+
+/// "an object", "a list", ... for error messages.
+fn json_kind(v: &serde_json::Value) -> &'static str {
+    use serde_json::Value;
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "a boolean",
+        Value::Number(_) => "a number",
+        Value::String(_) => "a string",
+        Value::Array(_) => "a list",
+        Value::Object(_) => "an object",
+    }
+}
+
+/// An error naming the first field of `input` (with a non-null value) that `parsed` does not have
+/// once serialized again: a field the schema does not know. Keeps the schema in the serde types.
+fn check_unknown_fields<T: Serialize>(input: &serde_json::Value, parsed: &T) -> Result<(), String> {
+    let (Some(input), Ok(serde_json::Value::Object(known))) = (input.as_object(), serde_json::to_value(parsed)) else {
+        return Ok(());
+    };
+    match input.iter().find(|(k, v)| !v.is_null() && !known.contains_key(*k)) {
+        Some((k, _)) => Err(format!("unknown field {k:?}; capture.json has no such field (a misspelling?)")),
+        None => Ok(()),
     }
 }
 
@@ -295,5 +438,111 @@ mod tests {
         std::fs::write(dir.join("capture.json"), "{\"version\": 1, \"views\": [}").unwrap();
         assert!(matches!(Capture::load(&dir), Err(CaptureError::Json { .. })));
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_written_spec_loads_to_the_same_values() {
+        let dir = setup("write");
+        let mut s = spec();
+        // Values that f32 cannot hold exactly: they must come back bit for bit.
+        s.views[0].k = [[512.3456, 0.0, 1.5], [0.0, 512.3456, 2.5], [0.0, 0.0, 1.0]];
+        let (c, sn) = (0.6f32.cos(), 0.6f32.sin());
+        s.views[0].r = [[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]];
+        s.views[0].t = [0.1, -0.2, 1.0 / 3.0];
+        s.views[0].gt_depth = Some("gt/depth/v0.exr".into());
+        std::fs::create_dir_all(dir.join("gt/depth")).unwrap();
+        std::fs::write(dir.join("gt/depth/v0.exr"), b"x").unwrap();
+        s.head_mesh = Some("raw_mesh.ply".into());
+        let written = s.write(&dir).unwrap();
+        assert_eq!(written, dir.join("capture.json"));
+        let text = std::fs::read_to_string(&written).unwrap();
+        assert!(text.ends_with("}\n") && text.contains("\"K\": ["), "{text}");
+        assert!(!text.contains("scalp_mesh") && !text.contains("\"mask\": null"), "absent fields are left out: {text}");
+        // The file parses back to the same spec, strictly and leniently.
+        let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(CaptureSpec::from_json(value, &written).unwrap(), s);
+        let c = Capture::load(&dir).unwrap();
+        let v = &c.views[0];
+        assert_eq!(v.name, "v0");
+        assert_eq!(v.image, dir.join("images/v0.png"));
+        assert_eq!(v.mask.as_deref(), Some(dir.join("masks/v0.png").as_path()));
+        assert_eq!(v.gt_depth.as_deref(), Some(dir.join("gt/depth/v0.exr").as_path()));
+        assert_eq!(v.gt_orientation, None);
+        assert_eq!(v.camera, Camera::new(s.views[0].k, s.views[0].r, s.views[0].t, 4, 6).unwrap());
+        assert_eq!((v.camera.width(), v.camera.height()), (4, 6));
+        assert_eq!(c.head_mesh.as_deref(), Some(dir.join("raw_mesh.ply").as_path()));
+        assert_eq!(c.scalp_mesh, None);
+        // A .json path is the file itself; a missing folder is created.
+        let other = dir.join("sub/other.json");
+        assert_eq!(s.write(&other).unwrap(), other);
+        assert!(other.is_file());
+        assert_eq!(s.write(dir.join("new")).unwrap(), dir.join("new/capture.json"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_bad_spec_is_rejected_and_nothing_is_written() {
+        let dir = std::env::temp_dir().join(format!("hairrecon-capture-test-badwrite-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let json = dir.join("capture.json");
+        let write = |s: &CaptureSpec| {
+            let e = s.write(&dir).unwrap_err();
+            assert!(!json.exists(), "a rejected spec left {}", json.display());
+            e
+        };
+
+        let mut s = spec();
+        s.views[0].image = PathBuf::new();
+        let e = write(&s);
+        assert!(matches!(e, CaptureError::EmptyPath { .. }), "{e}");
+        assert!(e.to_string().contains("view \"v0\": its image is empty"), "{e}");
+
+        let mut s = spec();
+        s.views[0].k[0][2] = f32::NAN;
+        let e = write(&s);
+        assert!(matches!(e, CaptureError::Camera { source: CameraError::NotFinite("K"), .. }), "{e}");
+        assert!(e.to_string().contains("\"v0\"") && e.to_string().contains("non-finite value in K"), "{e}");
+
+        let mut s = spec();
+        s.views.push(s.views[0].clone());
+        assert!(matches!(write(&s), CaptureError::DuplicateView { .. }));
+        let mut s = spec();
+        s.views.clear();
+        assert!(matches!(write(&s), CaptureError::NoViews { .. }));
+        let mut s = spec();
+        s.version = 2;
+        assert!(matches!(write(&s), CaptureError::Version { found: 2, .. }));
+        let mut s = spec();
+        s.convention = "opengl".into();
+        assert!(matches!(write(&s), CaptureError::Convention { .. }));
+        let mut s = spec();
+        s.raw_mesh = PathBuf::new();
+        assert!(write(&s).to_string().contains("raw_mesh is empty"));
+
+        // Parsed JSON: the error names the view and the field.
+        let good = serde_json::to_value(spec()).unwrap();
+        let mut v = good.clone();
+        v["views"][0].as_object_mut().unwrap().remove("image");
+        let e = CaptureSpec::from_json(v, &json).unwrap_err().to_string();
+        assert!(e.contains("views[0] \"v0\"") && e.contains("missing field `image`"), "{e}");
+        let mut v = good.clone();
+        v["views"][0]["K"] = serde_json::json!([[1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        let e = CaptureSpec::from_json(v, &json).unwrap_err().to_string();
+        assert!(e.contains("views[0] \"v0\""), "{e}");
+        let mut v = good.clone();
+        v["gt_strand"] = serde_json::json!("gt/strands.hair");
+        let e = CaptureSpec::from_json(v, &json).unwrap_err().to_string();
+        assert!(e.contains("unknown field \"gt_strand\""), "{e}");
+        let mut v = good.clone();
+        v["views"][0]["masks"] = serde_json::json!("m.png");
+        let e = CaptureSpec::from_json(v, &json).unwrap_err().to_string();
+        assert!(e.contains("views[0] \"v0\": unknown field \"masks\""), "{e}");
+        let e = CaptureSpec::from_json(serde_json::json!([1]), &json).unwrap_err().to_string();
+        assert!(e.contains("must be a JSON object, not a list"), "{e}");
+        // A null optional field is the field left out.
+        let mut v = good.clone();
+        v["head_mesh"] = serde_json::Value::Null;
+        assert_eq!(CaptureSpec::from_json(v, &json).unwrap(), spec());
+        assert!(!dir.exists());
     }
 }

@@ -16,6 +16,13 @@
 //! Writers quantise to PNG with rounding after clamping to `[0, 1]`, write EXR as 32-bit float with
 //! lossless ZIP compression (channel `Y` for gray, `R G B` for colour), and go through
 //! [`crate::formats::atomic_write`]. Every error names the file and says what is wrong.
+//!
+//! Images as stored, without conversion to float (the Python module's `read_image` and
+//! `write_image`): [`read_image`] gives a [`RawImage`] with the file's own samples (PNG: 8- or 16-bit
+//! integers, 1 to 4 channels, palettes and bit depths under 8 expanded; EXR: `f32`, the channels
+//! `R G B [A]`, `Y [A]` or the only one), [`write_image`] writes one (PNG or EXR by the extension),
+//! and [`read_exr_channels`] / [`write_exr_channels`] give every named channel of an OpenEXR file, over
+//! all its layers (Blender's multilayer render output).
 
 use std::io::Cursor as IoCursor;
 use std::path::Path;
@@ -326,4 +333,315 @@ pub fn write_exr_rgb_f32(path: impl AsRef<Path>, img: &RgbImage32) -> Result<()>
     check_size(img.width, img.height, 3, img.data.len()).map_err(|e| e.in_file(path))?;
     let plane = |c: usize| img.data.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
     write_exr(path, img.width, img.height, vec![("R", plane(0)), ("G", plane(1)), ("B", plane(2))])
+}
+
+/// The samples of a [`RawImage`], in the file's own type.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Samples {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    F32(Vec<f32>),
+}
+
+impl Samples {
+    /// The number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            Samples::U8(v) => v.len(),
+            Samples::U16(v) => v.len(),
+            Samples::F32(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn type_name(&self) -> &'static str {
+        match self {
+            Samples::U8(_) => "8-bit integer",
+            Samples::U16(_) => "16-bit integer",
+            Samples::F32(_) => "32-bit float",
+        }
+    }
+}
+
+/// An image as stored in its file: row-major, top row first, `channels` interleaved samples per
+/// pixel (`samples[channels * (y * width + x) + c]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawImage {
+    pub width: u32,
+    pub height: u32,
+    pub channels: usize,
+    pub samples: Samples,
+}
+
+impl RawImage {
+    /// Builds an image, checking the size, 1 to 4 channels and the number of samples.
+    pub fn new(width: u32, height: u32, channels: usize, samples: Samples) -> Result<Self> {
+        if !(1..=4).contains(&channels) {
+            return Err(invalid(format!("an image has 1 to 4 channels, got {channels}")));
+        }
+        check_size(width, height, channels, samples.len())?;
+        Ok(Self { width, height, channels, samples })
+    }
+}
+
+/// The named channels of an OpenEXR file, each `width * height` values, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExrChannels {
+    pub width: u32,
+    pub height: u32,
+    pub channels: Vec<(String, Vec<f32>)>,
+}
+
+/// Reads an image with its own samples (see the module doc): PNG as 8/16-bit integers with its 1 to 4
+/// channels; OpenEXR as `f32`, channels `R G B` (and `A` when there is one), else `Y` (and `A`), else
+/// the file's only channel. The type is taken from the file's first bytes.
+pub fn read_image(path: impl AsRef<Path>) -> Result<RawImage> {
+    let path = path.as_ref();
+    let bytes = read_file(path)?;
+    read_image_bytes(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// [`read_image`] from memory.
+pub fn read_image_bytes(bytes: &[u8]) -> Result<RawImage> {
+    use image::DynamicImage as D;
+    if !bytes.starts_with(PNG_MAGIC) {
+        let exr = read_exr_channels_bytes(bytes)?;
+        return exr_to_raw(exr);
+    }
+    let img = match decode(bytes)? {
+        Decoded::Png(img) => img,
+        Decoded::Exr(..) => unreachable!("a PNG signature decodes as PNG"),
+    };
+    let (w, h) = (img.width(), img.height());
+    let (channels, samples) = match img {
+        D::ImageLuma8(b) => (1, Samples::U8(b.into_raw())),
+        D::ImageLumaA8(b) => (2, Samples::U8(b.into_raw())),
+        D::ImageRgb8(b) => (3, Samples::U8(b.into_raw())),
+        D::ImageRgba8(b) => (4, Samples::U8(b.into_raw())),
+        D::ImageLuma16(b) => (1, Samples::U16(b.into_raw())),
+        D::ImageLumaA16(b) => (2, Samples::U16(b.into_raw())),
+        D::ImageRgb16(b) => (3, Samples::U16(b.into_raw())),
+        D::ImageRgba16(b) => (4, Samples::U16(b.into_raw())),
+        D::ImageRgb32F(b) => (3, Samples::F32(b.into_raw())),
+        D::ImageRgba32F(b) => (4, Samples::F32(b.into_raw())),
+        other => (4, Samples::F32(other.to_rgba32f().into_raw())),
+    };
+    RawImage::new(w, h, channels, samples)
+}
+
+fn exr_to_raw(exr: ExrChannels) -> Result<RawImage> {
+    let ExrChannels { width, height, mut channels } = exr;
+    let names: Vec<String> = channels.iter().map(|(n, _)| n.clone()).collect();
+    let has = |n: &str| names.iter().any(|m| m == n);
+    let pick: Vec<&str> = if has("R") && has("G") && has("B") {
+        if has("A") {
+            vec!["R", "G", "B", "A"]
+        } else {
+            vec!["R", "G", "B"]
+        }
+    } else if has("Y") {
+        if has("A") {
+            vec!["Y", "A"]
+        } else {
+            vec!["Y"]
+        }
+    } else if channels.len() == 1 {
+        vec![]
+    } else {
+        return Err(image_err(format!(
+            "the OpenEXR file has channels {names:?}, not R G B [A] or Y [A]; read them by name \
+             (read_exr_channels; Python: hairrecon.read_exr)"
+        )));
+    };
+    let planes: Vec<Vec<f32>> = if pick.is_empty() {
+        vec![channels.remove(0).1]
+    } else {
+        pick.iter().map(|n| take_channel(&mut channels, n).expect("checked above")).collect()
+    };
+    let n = planes[0].len();
+    let mut data = Vec::with_capacity(n * planes.len());
+    for i in 0..n {
+        data.extend(planes.iter().map(|p| p[i]));
+    }
+    RawImage::new(width, height, planes.len(), Samples::F32(data))
+}
+
+/// Reads every channel of every layer of an OpenEXR file (largest resolution level), as `f32`. The
+/// names are the file's own (Blender's multilayer files name them `ViewLayer.Combined.R`, ...); when
+/// the file has several layers (parts), a channel whose name does not already start with its layer's
+/// name gets that name as prefix (`layer.R`). All layers must have one size.
+pub fn read_exr_channels(path: impl AsRef<Path>) -> Result<ExrChannels> {
+    let path = path.as_ref();
+    let bytes = read_file(path)?;
+    read_exr_channels_bytes(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// [`read_exr_channels`] from memory.
+pub fn read_exr_channels_bytes(bytes: &[u8]) -> Result<ExrChannels> {
+    if !bytes.starts_with(EXR_MAGIC) {
+        if bytes.starts_with(PNG_MAGIC) {
+            return Err(image_err("this is a PNG file, not OpenEXR; read it with read_image"));
+        }
+        let found = String::from_utf8_lossy(&bytes[..bytes.len().min(8)]).into_owned();
+        return Err(
+            FormatErrorKind::BadMagic { format: "PNG or OpenEXR", expected: "\\x89PNG or v/1\\x01", found }.into()
+        );
+    }
+    guarded(|| {
+        use exr::prelude::{read, ReadChannels, ReadLayers};
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .from_buffered(IoCursor::new(bytes))
+            .map_err(|e| image_err(format!("cannot read the OpenEXR file: {e}")))?;
+        let several = image.layer_data.len() > 1;
+        let mut size = None;
+        let mut channels: Vec<(String, Vec<f32>)> = Vec::new();
+        for layer in &image.layer_data {
+            let (w, h) = (layer.size.width(), layer.size.height());
+            match size {
+                None => size = Some((w, h)),
+                Some(s) if s != (w, h) => {
+                    return Err(image_err(format!(
+                        "the OpenEXR file's layers have different sizes ({}x{} and {w}x{h}); hairrecon reads \
+                         layers of one size",
+                        s.0, s.1
+                    )))
+                }
+                Some(_) => {}
+            }
+            let prefix =
+                layer.attributes.layer_name.as_ref().map(|n| n.to_string()).filter(|n| several && !n.is_empty());
+            for c in &layer.channel_data.list {
+                let mut name = c.name.to_string();
+                if let Some(p) = &prefix {
+                    if !name.starts_with(&format!("{p}.")) {
+                        name = format!("{p}.{name}");
+                    }
+                }
+                let values: Vec<f32> = c.sample_data.values_as_f32().collect();
+                if values.len() != w * h {
+                    return Err(image_err(format!(
+                        "OpenEXR channel {name:?} is subsampled; hairrecon reads full-resolution channels"
+                    )));
+                }
+                if channels.iter().any(|(n, _)| *n == name) {
+                    return Err(image_err(format!("the OpenEXR file has two channels named {name:?}")));
+                }
+                channels.push((name, values));
+            }
+        }
+        let (w, h) = size.ok_or_else(|| image_err("the OpenEXR file has no layers"))?;
+        if channels.is_empty() {
+            return Err(image_err("the OpenEXR file has no channels"));
+        }
+        let (Ok(width), Ok(height)) = (u32::try_from(w), u32::try_from(h)) else {
+            return Err(image_err(format!("the OpenEXR image is too large ({w}x{h})")));
+        };
+        Ok(ExrChannels { width, height, channels })
+    })
+}
+
+/// Writes named `f32` channels (each `width * height` values, row-major) as a 32-bit float OpenEXR
+/// file with lossless ZIP compression, values unchanged. Channel names must be unique and non-empty.
+pub fn write_exr_channels(path: impl AsRef<Path>, exr: &ExrChannels) -> Result<()> {
+    let path = path.as_ref();
+    let check = || -> Result<()> {
+        if exr.channels.is_empty() {
+            return Err(invalid("an OpenEXR file needs at least one channel".into()));
+        }
+        for (i, (name, values)) in exr.channels.iter().enumerate() {
+            if name.is_empty() || exr.channels[..i].iter().any(|(n, _)| n == name) {
+                return Err(invalid(format!("OpenEXR channel names must be unique and non-empty, got {name:?}")));
+            }
+            check_size(exr.width, exr.height, 1, values.len())
+                .map_err(|e| invalid(format!("channel {name:?}: {}", e.kind)))?;
+        }
+        Ok(())
+    };
+    check().map_err(|e| e.in_file(path))?;
+    let channels = exr.channels.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+    write_exr(path, exr.width, exr.height, channels)
+}
+
+/// The OpenEXR channel names [`write_image`] gives 1 to 4 channels: `Y`, `Y A`, `R G B`, `R G B A`.
+pub fn default_channel_names(channels: usize) -> &'static [&'static str] {
+    match channels {
+        1 => &["Y"],
+        2 => &["Y", "A"],
+        3 => &["R", "G", "B"],
+        _ => &["R", "G", "B", "A"],
+    }
+}
+
+/// Writes an image as stored, by the file's extension: `.png` takes 8- or 16-bit samples with 1 to 4
+/// channels (gray, gray + alpha, RGB, RGBA) and writes them unchanged; `.exr` takes `f32` samples and
+/// writes them as 32-bit float channels named `names`, or by [`default_channel_names`]. Atomic.
+pub fn write_image(path: impl AsRef<Path>, img: &RawImage, names: Option<&[String]>) -> Result<()> {
+    use image::ExtendedColorType as C;
+    let path = path.as_ref();
+    let fail = |e: FormatError| e.in_file(path);
+    check_size(img.width, img.height, img.channels, img.samples.len()).map_err(fail)?;
+    if !(1..=4).contains(&img.channels) {
+        return Err(fail(invalid(format!("an image has 1 to 4 channels, got {}", img.channels))));
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+    match ext.as_str() {
+        "png" => {
+            if names.is_some() {
+                return Err(fail(invalid(
+                    "channel names are for OpenEXR; a PNG's channels are gray, gray + alpha, RGB or RGBA by their count"
+                        .into(),
+                )));
+            }
+            let (bytes, color) = match &img.samples {
+                Samples::U8(v) => (v.clone(), [C::L8, C::La8, C::Rgb8, C::Rgba8][img.channels - 1]),
+                // The encoder takes 16-bit samples in native byte order.
+                Samples::U16(v) => (
+                    v.iter().flat_map(|s| s.to_ne_bytes()).collect(),
+                    [C::L16, C::La16, C::Rgb16, C::Rgba16][img.channels - 1],
+                ),
+                Samples::F32(_) => return Err(fail(invalid(
+                    "PNG stores 8- or 16-bit integers, not floats: convert the values (e.g. to uint16) or write .exr"
+                        .into(),
+                ))),
+            };
+            write_png(path, img.width, img.height, &bytes, color)
+        }
+        "exr" => {
+            let Samples::F32(data) = &img.samples else {
+                return Err(fail(invalid(format!(
+                    "OpenEXR stores floats; got {} samples (convert them to float32, or write .png)",
+                    img.samples.type_name()
+                ))));
+            };
+            let names: Vec<String> = match names {
+                Some(n) if n.len() != img.channels => {
+                    return Err(fail(invalid(format!(
+                        "{} channel names for an image of {} channels",
+                        n.len(),
+                        img.channels
+                    ))))
+                }
+                Some(n) => n.to_vec(),
+                None => default_channel_names(img.channels).iter().map(|s| s.to_string()).collect(),
+            };
+            let channels = names
+                .into_iter()
+                .enumerate()
+                .map(|(c, n)| (n, data.iter().skip(c).step_by(img.channels).copied().collect()))
+                .collect();
+            write_exr_channels(path, &ExrChannels { width: img.width, height: img.height, channels })
+        }
+        other => {
+            Err(fail(FormatErrorKind::UnknownExtension { ext: format!(".{other}"), supported: ".png, .exr" }.into()))
+        }
+    }
 }

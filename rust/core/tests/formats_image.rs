@@ -157,3 +157,117 @@ fn corrupt_png_and_exr_files_give_errors_not_panics() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn raw_images_keep_their_samples_and_channels() {
+    let d = tmp_dir("raw");
+    let (w, h) = (5u32, 3u32);
+    let n = (w * h) as usize;
+    for c in 1..=4usize {
+        // Every sample distinct and asymmetric in x and y: a transposed or flipped image fails.
+        let s8: Vec<u8> = (0..n * c).map(|i| (i * 7 % 251) as u8).collect();
+        let img = RawImage::new(w, h, c, Samples::U8(s8)).unwrap();
+        let p = d.join(format!("u8_{c}.png"));
+        write_image(&p, &img, None).unwrap();
+        assert_eq!(read_image(&p).unwrap(), img, "8-bit, {c} channel(s)");
+        let s16: Vec<u16> = (0..n * c).map(|i| (i as u16).wrapping_mul(4099) ^ 0x8001).collect();
+        let img = RawImage::new(w, h, c, Samples::U16(s16)).unwrap();
+        let p = d.join(format!("u16_{c}.png"));
+        write_image(&p, &img, None).unwrap();
+        assert_eq!(read_image(&p).unwrap(), img, "16-bit, {c} channel(s)");
+        // The float readers see the same values (16-bit: value / 65535).
+        if c == 1 {
+            let Samples::U16(v) = &img.samples else { unreachable!() };
+            assert_eq!(read_gray_f32(&p).unwrap().get(4, 2), v[2 * 5 + 4] as f32 / 65535.0);
+        }
+        // EXR: bit-exact floats, including values PNG cannot hold.
+        let f: Vec<f32> = (0..n * c).map(|i| (i as f32 - 7.25) * 1e-3 + if i == 3 { 1e30 } else { 0.0 }).collect();
+        let img = RawImage::new(w, h, c, Samples::F32(f)).unwrap();
+        let p = d.join(format!("f32_{c}.exr"));
+        write_image(&p, &img, None).unwrap();
+        assert_eq!(read_image(&p).unwrap(), img, "EXR, {c} channel(s)");
+        let named = read_exr_channels(&p).unwrap();
+        let mut names: Vec<&str> = named.channels.iter().map(|(n, _)| n.as_str()).collect();
+        names.sort();
+        let mut want = default_channel_names(c).to_vec();
+        want.sort();
+        assert_eq!(names, want);
+    }
+    // Named EXR channels of any names, read back by name.
+    let planes: Vec<(String, Vec<f32>)> = ["depth", "weight"]
+        .iter()
+        .enumerate()
+        .map(|(k, name)| (name.to_string(), (0..n).map(|i| (k * 100 + i) as f32 + 0.5).collect()))
+        .collect();
+    let exr = ExrChannels { width: w, height: h, channels: planes };
+    write_exr_channels(d.join("named.exr"), &exr).unwrap();
+    let mut back = read_exr_channels(d.join("named.exr")).unwrap();
+    back.channels.sort_by(|a, b| a.0.cmp(&b.0));
+    assert_eq!(back, exr);
+    // Two channels that are neither R G B nor Y: read_image asks for them by name.
+    let e = read_image(d.join("named.exr")).unwrap_err();
+    assert!(e.to_string().contains("read them by name") && e.to_string().contains("named.exr"), "{e}");
+    // Interleaved channels with names of our choosing.
+    let f: Vec<f32> = (0..n * 2).map(|i| i as f32).collect();
+    let img = RawImage::new(w, h, 2, Samples::F32(f)).unwrap();
+    let names = vec!["Z".to_string(), "W".to_string()];
+    write_image(d.join("zw.exr"), &img, Some(&names)).unwrap();
+    let back = read_exr_channels(d.join("zw.exr")).unwrap();
+    let z = &back.channels.iter().find(|(n, _)| n == "Z").unwrap().1;
+    let wv = &back.channels.iter().find(|(n, _)| n == "W").unwrap().1;
+    assert_eq!((z[7], wv[7]), (14.0, 15.0));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn exr_layers_are_all_read() {
+    use exr::prelude::*;
+    let d = tmp_dir("layers");
+    let (w, h) = (4usize, 2usize);
+    let layer = |name: &str, chans: &[(&str, f32)]| {
+        let list: Vec<AnyChannel<FlatSamples>> =
+            chans.iter().map(|(n, v)| AnyChannel::new(*n, FlatSamples::F32(vec![*v; w * h]))).collect();
+        Layer::new((w, h), LayerAttributes::named(name), Encoding::SMALL_LOSSLESS, AnyChannels::sort(list.into()))
+    };
+    // Blender-style full names in one layer, and a second layer whose channel names lack the prefix.
+    let layers = vec![
+        layer("ViewLayer.Combined", &[("ViewLayer.Combined.R", 0.25), ("ViewLayer.Combined.G", 0.5)]),
+        layer("ViewLayer.Depth", &[("Z", 2.0)]),
+    ];
+    let image = Image::from_layers(ImageAttributes::new(IntegerBounds::from_dimensions((w, h))), layers);
+    image.write().to_file(d.join("multi.exr")).unwrap();
+    let exr = read_exr_channels(d.join("multi.exr")).unwrap();
+    assert_eq!((exr.width, exr.height), (4, 2));
+    let get = |n: &str| exr.channels.iter().find(|(m, _)| m == n).map(|(_, v)| v[5]);
+    assert_eq!(get("ViewLayer.Combined.R"), Some(0.25));
+    assert_eq!(get("ViewLayer.Combined.G"), Some(0.5));
+    assert_eq!(get("ViewLayer.Depth.Z"), Some(2.0));
+    assert_eq!(exr.channels.len(), 3);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn raw_image_errors_say_what_to_do() {
+    let d = tmp_dir("rawerr");
+    let f = RawImage::new(2, 2, 1, Samples::F32(vec![0.5; 4])).unwrap();
+    let e = write_image(d.join("f.png"), &f, None).unwrap_err();
+    assert!(e.to_string().contains("not floats") && e.to_string().contains("f.png"), "{e}");
+    let u = RawImage::new(2, 2, 1, Samples::U8(vec![1; 4])).unwrap();
+    let e = write_image(d.join("u.exr"), &u, None).unwrap_err();
+    assert!(e.to_string().contains("OpenEXR stores floats"), "{e}");
+    let e = write_image(d.join("u.tif"), &u, None).unwrap_err();
+    assert!(matches!(e.kind, FormatErrorKind::UnknownExtension { .. }), "{e}");
+    let e = write_image(d.join("u.png"), &u, Some(&["Y".to_string()])).unwrap_err();
+    assert!(e.to_string().contains("channel names are for OpenEXR"), "{e}");
+    let e = write_image(d.join("f.exr"), &f, Some(&["Y".to_string(), "A".to_string()])).unwrap_err();
+    assert!(e.to_string().contains("2 channel names for an image of 1 channels"), "{e}");
+    assert!(RawImage::new(2, 2, 5, Samples::U8(vec![0; 20])).is_err());
+    assert!(RawImage::new(2, 2, 1, Samples::U8(vec![0; 3])).is_err());
+    let e = read_image(d.join("missing.png")).unwrap_err();
+    assert!(matches!(e.kind, FormatErrorKind::Io(_)) && e.to_string().contains("missing.png"), "{e}");
+    std::fs::write(d.join("junk.png"), b"not an image at all").unwrap();
+    let e = read_image(d.join("junk.png")).unwrap_err();
+    assert!(matches!(e.kind, FormatErrorKind::BadMagic { .. }), "{e}");
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1, "a failed write left a file");
+    std::fs::remove_dir_all(&d).unwrap();
+}

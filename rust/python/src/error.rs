@@ -1,22 +1,98 @@
 //! The one place where Rust errors become Python exceptions.
 //!
-//! Every domain error becomes `hairrecon.HairreconError` carrying the Rust error's message (which
-//! names the file or view and what to do); a cancelled run becomes `hairrecon.Cancelled`, a
-//! subclass. Panics never cross the boundary: entry points run under `catch_unwind`.
+//! ```text
+//! hairrecon.Error              (also named hairrecon.HairreconError, the same class)
+//! ├── hairrecon.CaptureError   a capture folder or its capture.json is wrong
+//! ├── hairrecon.FormatError    a file cannot be read or written
+//! ├── hairrecon.InputError     an argument has a bad value (shape, dtype, range)
+//! └── hairrecon.Cancelled      the user cancelled the run
+//! ```
+//!
+//! Every exception carries the Rust error's message, which names the file or view and says what to
+//! do. Map errors with the functions below ([`capture_err`], [`format_err`], [`input_err`],
+//! [`cancelled_err`]), or [`from_error`] for an error that wraps a core error as its source. Panics
+//! never cross the boundary: entry points run under [`guard`].
 
+use hairrecon_core::capture::CaptureError as CoreCaptureError;
+use hairrecon_core::formats::FormatError as CoreFormatError;
+use hairrecon_core::{CameraError, MeshError, StrandError};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
 use pyo3::PyErr;
 
-create_exception!(hairrecon, HairreconError, PyException, "An error from the hairrecon library.");
-create_exception!(hairrecon, Cancelled, HairreconError, "The run was cancelled by the user.");
+create_exception!(hairrecon, Error, PyException, "An error from the hairrecon library (base of all of its errors).");
+create_exception!(hairrecon, CaptureError, Error, "A capture folder or its capture.json is wrong.");
+create_exception!(hairrecon, FormatError, Error, "A file cannot be read or written.");
+create_exception!(hairrecon, InputError, Error, "An argument has a bad value (shape, dtype, range).");
+create_exception!(hairrecon, Cancelled, Error, "The run was cancelled by the user.");
 
-/// Converts any displayable Rust error into `HairreconError`.
-pub fn to_py<E: std::fmt::Display>(e: E) -> PyErr {
-    HairreconError::new_err(e.to_string())
+/// The base class under its older name; `hairrecon.HairreconError is hairrecon.Error`.
+pub type HairreconError = Error;
+
+/// Adds the exception classes to the module (and the `HairreconError` alias).
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("Error", py.get_type::<Error>())?;
+    m.add("HairreconError", py.get_type::<Error>())?;
+    m.add("CaptureError", py.get_type::<CaptureError>())?;
+    m.add("FormatError", py.get_type::<FormatError>())?;
+    m.add("InputError", py.get_type::<InputError>())?;
+    m.add("Cancelled", py.get_type::<Cancelled>())?;
+    Ok(())
 }
 
-/// Runs `f`, turning a panic into `HairreconError` instead of aborting the host (Blender).
+/// A capture folder or capture.json problem: `hairrecon.CaptureError`.
+pub fn capture_err(e: impl std::fmt::Display) -> PyErr {
+    CaptureError::new_err(e.to_string())
+}
+
+/// A file that cannot be read or written: `hairrecon.FormatError`.
+pub fn format_err(e: impl std::fmt::Display) -> PyErr {
+    FormatError::new_err(e.to_string())
+}
+
+/// A bad argument value: `hairrecon.InputError`.
+pub fn input_err(e: impl std::fmt::Display) -> PyErr {
+    InputError::new_err(e.to_string())
+}
+
+/// The user cancelled: `hairrecon.Cancelled`.
+#[allow(dead_code)] // for job.rs, which maps its errors here
+pub fn cancelled_err(e: impl std::fmt::Display) -> PyErr {
+    Cancelled::new_err(e.to_string())
+}
+
+/// Any error, by what it is or wraps: the first core error in its `source()` chain decides the class
+/// (a capture error: `CaptureError`; a format error: `FormatError`; invalid cameras, meshes or
+/// strands: `InputError`), else `Error`. The message is the outer error's. `#[error(transparent)]`
+/// wrappers hide the wrapped error from `source()`: map their variants with the functions above.
+#[allow(dead_code)] // for job.rs, which maps its errors here
+pub fn from_error(e: &(dyn std::error::Error + 'static)) -> PyErr {
+    let msg = e.to_string();
+    let mut cur: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(err) = cur {
+        if err.is::<CoreCaptureError>() {
+            return CaptureError::new_err(msg);
+        }
+        if err.is::<CoreFormatError>() {
+            return FormatError::new_err(msg);
+        }
+        if err.is::<CameraError>() || err.is::<MeshError>() || err.is::<StrandError>() {
+            return InputError::new_err(msg);
+        }
+        cur = err.source();
+    }
+    Error::new_err(msg)
+}
+
+/// Converts any displayable Rust error into the base `hairrecon.Error` (for errors of no more
+/// specific kind, e.g. a poisoned lock).
+pub fn to_py<E: std::fmt::Display>(e: E) -> PyErr {
+    Error::new_err(e.to_string())
+}
+
+/// Runs `f`, turning a panic into `hairrecon.Error` instead of aborting the host (Blender).
 pub fn guard<T>(f: impl FnOnce() -> Result<T, PyErr> + std::panic::UnwindSafe) -> Result<T, PyErr> {
     match std::panic::catch_unwind(f) {
         Ok(r) => r,
@@ -26,7 +102,7 @@ pub fn guard<T>(f: impl FnOnce() -> Result<T, PyErr> + std::panic::UnwindSafe) -
                 .map(String::as_str)
                 .or_else(|| p.downcast_ref::<&str>().copied())
                 .unwrap_or("unknown panic");
-            Err(HairreconError::new_err(format!("internal error in hairrecon (please report it): {msg}")))
+            Err(Error::new_err(format!("internal error in hairrecon (please report it): {msg}")))
         }
     }
 }

@@ -1,8 +1,10 @@
 //! Python module `hairrecon`: thin bindings of the Rust library.
 //!
 //! Each function borrows its numpy inputs, releases the GIL while Rust works, and converts the
-//! result back; no algorithm lives here. Errors become `hairrecon.HairreconError` (see
-//! [`error`]). Built by maturin with pyo3's `abi3-py311`, so one wheel serves Blender 4.2+.
+//! result back; no algorithm lives here. Errors become `hairrecon.Error` or one of its subclasses
+//! `CaptureError`, `FormatError`, `InputError`, `Cancelled` (see [`error`]). File formats for
+//! scripts (capture.json, PNG, OpenEXR) are in [`io`]. Built by maturin with pyo3's `abi3-py311`, so
+//! one wheel serves Blender 4.2+.
 //!
 //! ```python
 //! import hairrecon
@@ -22,9 +24,10 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 mod error;
+mod io;
 mod job;
 
-use error::{guard, to_py, Cancelled, HairreconError};
+use error::{capture_err, format_err, guard, input_err, to_py};
 
 /// Strands as numpy arrays: points float32 (N, 3) and counts uint32 (S,).
 type StrandArrays<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<u32>>);
@@ -38,7 +41,7 @@ pub(crate) fn json_to_py(py: Python<'_>, value: &serde_json::Value) -> PyResult<
 fn points_from(arr: &PyReadonlyArray2<'_, f32>, what: &str) -> PyResult<Vec<Vec3>> {
     let view = arr.as_array();
     if view.ncols() != 3 {
-        return Err(HairreconError::new_err(format!("{what} must have shape (N, 3), got {:?}", view.shape())));
+        return Err(input_err(format!("{what} must have shape (N, 3), got {:?}", view.shape())));
     }
     Ok(view.rows().into_iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())
 }
@@ -50,7 +53,7 @@ fn strands_from(
 ) -> PyResult<StrandSet> {
     let pts = points_from(points, &format!("{what} points"))?;
     let counts = counts.as_array().to_vec();
-    StrandSet::new(pts, counts).map_err(|e| HairreconError::new_err(format!("{what} strands: {e}")))
+    StrandSet::new(pts, counts).map_err(|e| input_err(format!("{what} strands: {e}")))
 }
 
 fn points_to_py<'py>(py: Python<'py>, pts: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {
@@ -59,10 +62,14 @@ fn points_to_py<'py>(py: Python<'py>, pts: &[Vec3]) -> PyResult<Bound<'py, PyArr
 }
 
 /// Reads strands from a .hair, .data, .ply or .obj file. Returns `(points, counts)`: float32 (N, 3)
-/// and uint32 (S,), each strand root first.
+/// and uint32 (S,), each strand root first. A strand of one point is an error (`FormatError`), or
+/// is dropped with `skip_short_strands=True` (.hair and .data files can hold them).
 #[pyfunction]
-fn read_strands<'py>(py: Python<'py>, path: PathBuf) -> PyResult<StrandArrays<'py>> {
-    let s = py.allow_threads(|| guard(|| formats::read_strands(&path).map_err(to_py)))?;
+#[pyo3(signature = (path, skip_short_strands=false))]
+fn read_strands<'py>(py: Python<'py>, path: PathBuf, skip_short_strands: bool) -> PyResult<StrandArrays<'py>> {
+    let options = formats::StrandReadOptions { skip_short_strands };
+    let s =
+        py.allow_threads(|| guard(|| formats::read_strands_with(&path, options).map(|(s, _)| s).map_err(format_err)))?;
     let (pts, counts) = s.into_parts();
     Ok((points_to_py(py, &pts)?, PyArray1::from_vec(py, counts)))
 }
@@ -77,14 +84,14 @@ fn write_strands(
     counts: PyReadonlyArray1<'_, u32>,
 ) -> PyResult<()> {
     let s = strands_from(&points, &counts, "the")?;
-    py.allow_threads(|| guard(|| formats::write_strands(&path, &s).map_err(to_py)))
+    py.allow_threads(|| guard(|| formats::write_strands(&path, &s).map_err(format_err)))
 }
 
 /// Reads a triangle mesh (.ply or .obj). Returns a dict with `vertices` float32 (V, 3),
 /// `triangles` uint32 (T, 3), `uvs` float32 (V, 2) or None, `normals` float32 (V, 3) or None.
 #[pyfunction]
 fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
-    let m = py.allow_threads(|| guard(|| formats::read_mesh(&path).map_err(to_py)))?;
+    let m = py.allow_threads(|| guard(|| formats::read_mesh(&path).map_err(format_err)))?;
     let d = PyDict::new(py);
     d.set_item("vertices", points_to_py(py, &m.vertices)?)?;
     let tris: Vec<u32> = m.triangles.iter().flatten().copied().collect();
@@ -116,22 +123,21 @@ fn write_mesh(
     let v = points_from(&vertices, "vertices")?;
     let t = triangles.as_array();
     if t.ncols() != 3 {
-        return Err(HairreconError::new_err(format!("triangles must have shape (T, 3), got {:?}", t.shape())));
+        return Err(input_err(format!("triangles must have shape (T, 3), got {:?}", t.shape())));
     }
     let tris: Vec<[u32; 3]> = t.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
     let uv = match &uvs {
         Some(a) => {
             let a = a.as_array();
             if a.ncols() != 2 {
-                return Err(HairreconError::new_err(format!("uvs must have shape (V, 2), got {:?}", a.shape())));
+                return Err(input_err(format!("uvs must have shape (V, 2), got {:?}", a.shape())));
             }
             Some(a.rows().into_iter().map(|r| Vec2::new(r[0], r[1])).collect())
         }
         None => None,
     };
-    let mesh =
-        TriMesh::new(v, tris, None, uv).map_err(|e| HairreconError::new_err(format!("{}: {e}", path.display())))?;
-    py.allow_threads(|| guard(|| formats::write_mesh(&path, &mesh).map_err(to_py)))
+    let mesh = TriMesh::new(v, tris, None, uv).map_err(|e| input_err(format!("{}: {e}", path.display())))?;
+    py.allow_threads(|| guard(|| formats::write_mesh(&path, &mesh).map_err(format_err)))
 }
 
 /// Scores predicted strands against ground truth (the metric of docs/method.md). Returns
@@ -150,16 +156,16 @@ fn eval(
     let pred = strands_from(&pred_points, &pred_counts, "predicted")?;
     let gt = strands_from(&gt_points, &gt_counts, "ground-truth")?;
     let report = py.allow_threads(|| {
-        guard(|| evaluate(&pred, &gt, &MetricOptions { step: step_mm * 1e-3, ..Default::default() }).map_err(to_py))
+        guard(|| evaluate(&pred, &gt, &MetricOptions { step: step_mm * 1e-3, ..Default::default() }).map_err(input_err))
     })?;
     json_to_py(py, &serde_json::to_value(&report).map_err(to_py)?)
 }
 
 /// Validates a capture folder (or capture.json) and returns a summary dict; raises
-/// `HairreconError` naming the view and file of the first problem.
+/// `CaptureError` naming the view and file of the first problem.
 #[pyfunction]
 fn load_capture<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
-    let c = py.allow_threads(|| guard(|| Capture::load(&path).map_err(to_py)))?;
+    let c = py.allow_threads(|| guard(|| Capture::load(&path).map_err(capture_err)))?;
     let d = PyDict::new(py);
     d.set_item("num_views", c.views.len())?;
     d.set_item("views", c.views.iter().map(|v| v.name.clone()).collect::<Vec<_>>())?;
@@ -173,14 +179,14 @@ fn load_capture<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDi
 #[pymodule]
 fn hairrecon(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("HairreconError", m.py().get_type::<HairreconError>())?;
-    m.add("Cancelled", m.py().get_type::<Cancelled>())?;
+    error::register(m)?;
     m.add_function(wrap_pyfunction!(read_strands, m)?)?;
     m.add_function(wrap_pyfunction!(write_strands, m)?)?;
     m.add_function(wrap_pyfunction!(read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(write_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(eval, m)?)?;
     m.add_function(wrap_pyfunction!(load_capture, m)?)?;
+    io::register(m)?;
     job::register(m)?;
     Ok(())
 }
