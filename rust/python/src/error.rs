@@ -10,12 +10,11 @@
 //!
 //! Every exception carries the Rust error's message, which names the file or view and says what to
 //! do. Map errors with the functions below ([`capture_err`], [`format_err`], [`input_err`],
-//! [`cancelled_err`]), or [`from_error`] for an error that wraps a core error as its source. Panics
-//! never cross the boundary: entry points run under [`guard`].
+//! [`cancelled_err`]); a reconstruction's error is classified by [`Class::of`] (the job keeps the
+//! class and the message until Python asks, then [`Class::raise`]). Panics never cross the
+//! boundary: entry points run under [`guard`].
 
-use hairrecon_core::capture::CaptureError as CoreCaptureError;
-use hairrecon_core::formats::FormatError as CoreFormatError;
-use hairrecon_core::{CameraError, MeshError, StrandError};
+use hairrecon_recon::ReconError;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -58,32 +57,45 @@ pub fn input_err(e: impl std::fmt::Display) -> PyErr {
 }
 
 /// The user cancelled: `hairrecon.Cancelled`.
-#[allow(dead_code)] // for job.rs, which maps its errors here
 pub fn cancelled_err(e: impl std::fmt::Display) -> PyErr {
     Cancelled::new_err(e.to_string())
 }
 
-/// Any error, by what it is or wraps: the first core error in its `source()` chain decides the class
-/// (a capture error: `CaptureError`; a format error: `FormatError`; invalid cameras, meshes or
-/// strands: `InputError`), else `Error`. The message is the outer error's. `#[error(transparent)]`
-/// wrappers hide the wrapped error from `source()`: map their variants with the functions above.
-#[allow(dead_code)] // for job.rs, which maps its errors here
-pub fn from_error(e: &(dyn std::error::Error + 'static)) -> PyErr {
-    let msg = e.to_string();
-    let mut cur: Option<&(dyn std::error::Error + 'static)> = Some(e);
-    while let Some(err) = cur {
-        if err.is::<CoreCaptureError>() {
-            return CaptureError::new_err(msg);
+/// The Python exception class of a failed reconstruction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    Capture,
+    Format,
+    Input,
+    Cancelled,
+    Other,
+}
+
+impl Class {
+    /// What kind of failure a pipeline error is.
+    pub fn of(e: &ReconError) -> Self {
+        match e {
+            ReconError::Cancelled(_) => Class::Cancelled,
+            ReconError::Format(_) | ReconError::Orient2d(_) | ReconError::Points(_) => Class::Format,
+            ReconError::OutDir { .. } | ReconError::Write { .. } => Class::Format,
+            ReconError::NoScalp { .. } | ReconError::Scalp { .. } => Class::Capture,
+            ReconError::Config(_) | ReconError::EmptyPlan { .. } | ReconError::MissingStageOutput { .. } => {
+                Class::Input
+            }
+            _ => Class::Other,
         }
-        if err.is::<CoreFormatError>() {
-            return FormatError::new_err(msg);
-        }
-        if err.is::<CameraError>() || err.is::<MeshError>() || err.is::<StrandError>() {
-            return InputError::new_err(msg);
-        }
-        cur = err.source();
     }
-    Error::new_err(msg)
+
+    /// The exception of this class with `msg`.
+    pub fn raise(self, msg: impl std::fmt::Display) -> PyErr {
+        match self {
+            Class::Capture => capture_err(msg),
+            Class::Format => format_err(msg),
+            Class::Input => input_err(msg),
+            Class::Cancelled => cancelled_err(msg),
+            Class::Other => to_py(msg),
+        }
+    }
 }
 
 /// Converts any displayable Rust error into the base `hairrecon.Error` (for errors of no more

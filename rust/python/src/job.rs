@@ -16,9 +16,9 @@ use hairrecon_recon::{reconstruct as run_pipeline, Plan, ReconError, Reconstruct
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::error::{to_py, Cancelled, HairreconError};
+use crate::error::{input_err, to_py, Class, HairreconError};
 
-type Outcome = Result<ReconstructOutput, String>;
+type Outcome = Result<ReconstructOutput, RunError>;
 
 /// The keyword arguments shared by `Reconstruction(...)` and `reconstruct(...)`: each given one
 /// overrides `config` (a config.json path; else the library's defaults).
@@ -41,17 +41,17 @@ struct Args<'a> {
 }
 
 fn stage(name: &str, s: Option<&str>) -> PyResult<Option<Stage>> {
-    s.map(|s| s.parse::<Stage>().map_err(|e| HairreconError::new_err(format!("{name}: {e}")))).transpose()
+    s.map(|s| s.parse::<Stage>().map_err(|e| input_err(format!("{name}: {e}")))).transpose()
 }
 
 /// The configuration and plan of the arguments.
 fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
     let mut c = match &a.config {
-        Some(p) => ConfigFile::load(p).map_err(to_py)?.config,
+        Some(p) => ConfigFile::load(p).map_err(input_err)?.config,
         None => ReconstructConfig::default(),
     };
     if a.guides == Some(0) || a.children == Some(0) {
-        return Err(HairreconError::new_err("guides and children must be at least 1"));
+        return Err(input_err("guides and children must be at least 1"));
     }
     c.guides = a.guides.unwrap_or(c.guides);
     c.children = a.children.unwrap_or(c.children);
@@ -66,9 +66,9 @@ fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
     c.hull_trim = a.hull_trim.unwrap_or(c.hull_trim);
     c.parting.enabled = a.parting.unwrap_or(c.parting.enabled);
     if let Some(curl) = a.curl {
-        c.curl = curl.parse().map_err(|e: String| HairreconError::new_err(format!("curl: {e}")))?;
+        c.curl = curl.parse().map_err(|e: String| input_err(format!("curl: {e}")))?;
     }
-    c.validate().map_err(to_py)?;
+    c.validate().map_err(input_err)?;
     let plan = Plan {
         from: stage("from_stage", a.from_stage)?.unwrap_or(Stage::Orient2d),
         stop_after: stage("stop_after", a.stop_after)?,
@@ -76,28 +76,30 @@ fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
     Ok((c, plan))
 }
 
-/// Runs the whole pipeline; any error or panic becomes a message (cancellation is kept apart).
+/// Runs the whole pipeline; any error or panic becomes a classified message (cancellation apart).
 fn run(
     capture_dir: &std::path::Path,
     out_dir: &std::path::Path,
     (cfg, plan): &(ReconstructConfig, Plan),
     progress: &dyn Progress,
 ) -> Result<ReconstructOutput, RunError> {
-    let capture = Capture::load(capture_dir).map_err(|e| RunError::Failed(e.to_string()))?;
+    let capture = Capture::load(capture_dir).map_err(|e| RunError::Failed(Class::Capture, e.to_string()))?;
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         run_pipeline(&capture, out_dir, cfg, *plan, progress)
     })) {
         Ok(Ok(out)) => Ok(out),
         Ok(Err(ReconError::Cancelled(_))) => Err(RunError::Cancelled),
-        Ok(Err(e)) => Err(RunError::Failed(e.to_string())),
-        Err(_) => Err(RunError::Failed("internal error in the hairrecon pipeline (please report it)".into())),
+        Ok(Err(e)) => Err(RunError::Failed(Class::of(&e), e.to_string())),
+        Err(_) => {
+            Err(RunError::Failed(Class::Other, "internal error in the hairrecon pipeline (please report it)".into()))
+        }
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 enum RunError {
     Cancelled,
-    Failed(String),
+    Failed(Class, String),
 }
 
 fn output_to_py<'py>(py: Python<'py>, out: &ReconstructOutput) -> PyResult<Bound<'py, PyDict>> {
@@ -114,8 +116,10 @@ fn output_to_py<'py>(py: Python<'py>, out: &ReconstructOutput) -> PyResult<Bound
 
 fn run_error_to_py(e: RunError) -> PyErr {
     match e {
-        RunError::Cancelled => Cancelled::new_err("reconstruction cancelled by the user; nothing was written"),
-        RunError::Failed(m) => HairreconError::new_err(m),
+        RunError::Cancelled => {
+            Class::Cancelled.raise("reconstruction cancelled by the user; its result was not written")
+        }
+        RunError::Failed(class, m) => class.raise(m),
     }
 }
 
@@ -133,7 +137,7 @@ fn run_error_to_py(e: RunError) -> PyErr {
 /// job.start()
 /// while not job.done():
 ///     fraction, text = job.progress()
-/// result = job.result()   # dict, or raises HairreconError / Cancelled
+/// result = job.result()   # dict, or raises hairrecon.Error (a subclass: CaptureError, ...) / Cancelled
 /// ```
 #[derive(Debug)]
 #[pyclass(module = "hairrecon")]
@@ -234,24 +238,23 @@ impl Reconstruction {
 
     /// Waits for the work (GIL released) and returns its result dict: `strands`, `guides` (the final
     /// strands: paths or None), `init_strands`, `init_guides` (before DR, when it ran), `loss_csv`,
-    /// `stage_times` [(name, seconds)], `report` (dict: what `report.json` holds). Raises `Cancelled` or `HairreconError`.
+    /// `stage_times` [(name, seconds)], `report` (dict: what `report.json` holds). Raises `Cancelled` or another `hairrecon.Error`.
     fn result<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let handle = self.handle.lock().map_err(to_py)?.take();
         if let Some(h) = handle {
             let r = py.allow_threads(|| h.join());
-            let outcome = match r {
-                Ok(Ok(out)) => Ok(out),
-                Ok(Err(RunError::Cancelled)) => Err("\u{0}cancelled".to_string()),
-                Ok(Err(RunError::Failed(m))) => Err(m),
-                Err(_) => Err("internal error in the hairrecon worker thread (please report it)".to_string()),
-            };
+            let outcome = r.unwrap_or_else(|_| {
+                Err(RunError::Failed(
+                    Class::Other,
+                    "internal error in the hairrecon worker thread (please report it)".into(),
+                ))
+            });
             *self.outcome.lock().map_err(to_py)? = Some(outcome);
         }
         match self.outcome.lock().map_err(to_py)?.as_ref() {
             None => Err(HairreconError::new_err("this reconstruction was not started; call start() first")),
             Some(Ok(out)) => output_to_py(py, out),
-            Some(Err(m)) if m == "\u{0}cancelled" => Err(run_error_to_py(RunError::Cancelled)),
-            Some(Err(m)) => Err(HairreconError::new_err(m.clone())),
+            Some(Err(e)) => Err(run_error_to_py(e.clone())),
         }
     }
 }

@@ -139,7 +139,7 @@ impl Progress for CancelInDr {
 }
 
 #[test]
-fn a_run_cancelled_during_dr_writes_no_strands() {
+fn a_run_cancelled_during_dr_writes_no_strands_and_resumes_from_its_init() {
     let cap = capture("cancel");
     let out_dir = cap.dir.join("out");
     // A previous run's strands in the folder must not survive as if they were this run's.
@@ -152,9 +152,15 @@ fn a_run_cancelled_during_dr_writes_no_strands() {
     let progress = CancelInDr { steps: 3, flag: AtomicBool::new(false) };
     let r = reconstruct(&cap, &out_dir, &opts, Plan::default(), &progress);
     assert!(matches!(r, Err(ReconError::Cancelled(_))), "{r:?}");
-    for f in ["strands.hair", "guides.hair", "init_strands.hair", "init_guides.hair", "loss.csv", "loss.png"] {
+    for f in ["strands.hair", "guides.hair", "loss.csv", "loss.png"] {
         assert!(!out_dir.join(f).exists(), "{f} exists after a cancelled run");
     }
+    // The init stage had finished: its strands are saved whole, and DR resumes from them.
+    assert!(out_dir.join("init_strands.hair").is_file() && out_dir.join("init.json").is_file());
+    let resumed = Plan { from: hairrecon_recon::Stage::Dr, stop_after: None };
+    let out = reconstruct(&cap, &out_dir, &opts, resumed, &NoProgress).unwrap();
+    assert!(out.strands.as_ref().is_some_and(|p| p.is_file()));
+    assert_eq!(out.report.stages.len(), 6, "the resumed report keeps the stages before DR");
     let leftovers: Vec<String> = std::fs::read_dir(&out_dir)
         .unwrap()
         .filter_map(|e| e.ok())
