@@ -25,10 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "scripts"))
 
-import _hairio as hio  # noqa: E402
+import addon_core  # noqa: E402
+import hairrecon  # noqa: E402
 
 GREYS = [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 0.9]
 
@@ -53,20 +54,9 @@ def render_rgb(bpy, sc, camera: str, out: Path) -> np.ndarray:
     sc.camera = bpy.data.objects[camera]
     sc.render.filepath = str(out)
     bpy.ops.render.render(write_still=True)
-    ex = hio.read_exr(out)
+    ex = hairrecon.read_exr(str(out))
     out.unlink()
     return np.stack([ex[f"ViewLayer.Combined.{c}"] for c in "RGB"], axis=2)
-
-
-def addon_core():
-    """addon/hairrecon/core.capture (it needs no bpy)."""
-    core = ROOT / "addon" / "hairrecon" / "core"
-    spec = importlib.util.spec_from_file_location("hairrecon_addon_core", core / "__init__.py",
-                                                  submodule_search_locations=[str(core)])
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["hairrecon_addon_core"] = mod
-    spec.loader.exec_module(mod)
-    return importlib.import_module("hairrecon_addon_core.capture")
 
 
 def main(argv=None) -> int:
@@ -77,7 +67,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     import bpy
 
-    core = addon_core()
+    core = addon_core.load("capture")
     photos = {}
     if a.check:  # read before the scene replaces bpy.data
         views = []
