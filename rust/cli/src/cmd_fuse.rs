@@ -43,7 +43,7 @@ pub struct FuseDepthArgs {
     /// their mean.
     #[arg(long)]
     pub quantile: Option<f32>,
-    /// Folder of depth maps named <view>.exr, relative to the capture (default: each view's gt_depth).
+    /// Folder of depth maps named `<view>.exr`, relative to the capture (default: each view's gt_depth).
     #[arg(long)]
     pub depth_dir: Option<PathBuf>,
     /// Output mesh (.ply or .obj; default: the capture's raw_mesh path).

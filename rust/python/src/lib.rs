@@ -2,8 +2,8 @@
 //!
 //! Each function borrows its numpy inputs, releases the GIL while Rust works, and converts the
 //! result back; no algorithm lives here. Errors become `hairrecon.Error` or one of its subclasses
-//! `CaptureError`, `FormatError`, `InputError`, `Cancelled` (see [`error`]). File formats for
-//! scripts (capture.json, PNG, OpenEXR) are in [`io`]. Built by maturin with pyo3's `abi3-py311`, so
+//! `CaptureError`, `FormatError`, `InputError`, `Cancelled` (see the `error` module). File formats for
+//! scripts (capture.json, PNG, OpenEXR) are in the `io` module. Built by maturin with pyo3's `abi3-py311`, so
 //! one wheel serves Blender 4.2+.
 //!
 //! ```python

@@ -4,13 +4,13 @@
 //!
 //! Ringlets hang: the handedness whose ringlet axes (at the nominal pitch) point down more is the
 //! hair's, and the hair is curly only when those axes point down clearly more (by
-//! [`CurlOptions::min_down_gain`]) than the points' own directions, which on straight hair are the
+//! [`crate::curl::CurlOptions::min_down_gain`]) than the points' own directions, which on straight hair are the
 //! strands' and hang the most. Then the period is read off the hair surface's bumps along those
 //! axes ([`crate::curl::bump_period`]), and the radius is the one that gives the nominal pitch at that
-//! period ([`CurlOptions::nominal_pitch_deg`]). The pitch is assumed, not measured: the points see
+//! period ([`crate::curl::CurlOptions::nominal_pitch_deg`]). The pitch is assumed, not measured: the points see
 //! the ringlets' visible side only, where the tangents are the same at every turn.
 //!
-//! When the surface shows no period (or [`CurlOptions::bump_period`] is off), strands are grown
+//! When the surface shows no period (or [`crate::curl::CurlOptions::bump_period`] is off), strands are grown
 //! along the axes and the curl (of the radii and periods of the options) whose helices about them
 //! fit the Gabor orientation maps best ([`crate::dr::optimize::orientation_misfit`], on a subset of
 //! children and views) is chosen. That misfit prefers wide radii (it rewards how densely the helices

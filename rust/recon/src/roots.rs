@@ -67,7 +67,7 @@ impl Roots {
 const ROOT_SEED_SALT: u64 = 0x5EED_0F2E_C040_5700;
 
 /// `n` roots in blue noise on the scalp, deterministic for a given seed, and independent of the
-/// roots the synthetic generator samples with any seed ([`ROOT_SEED_SALT`]).
+/// roots the synthetic generator samples with any seed (a fixed salt, `ROOT_SEED_SALT`).
 pub fn sample_roots(scalp: &Scalp, n: usize, seed: u64) -> Result<Roots, ScalpError> {
     let mut roots = Roots::default();
     for r in scalp.sample_roots(n, hairrecon_core::scalp::splitmix64(seed ^ ROOT_SEED_SALT))? {

@@ -7,7 +7,7 @@
 //!   `θ` (tan θ = 2πr / period) has its tangent turned by `-h·θ` about the hair surface's outward
 //!   normal from the axis; so turning each point's tangent by `+h·θ` about that normal gives the
 //!   axis (the normal must be the hair surface's at the scale of the hairstyle, not of one ringlet:
-//!   the raw mesh's normals blurred by [`CurlOptions::normal_sigma`]) ([`axes`]);
+//!   the raw mesh's normals blurred by [`CurlOptions::normal_sigma`]) (`axes`);
 //! - averaging those turned directions over a few millimetres (their noise is independent) then
 //!   gives a smooth axis field, from which the Laplace flow grows centrelines.
 //!
@@ -15,8 +15,8 @@
 //! so [`hang`] points every axis down before the growth. The points lie on the ringlets' outer side,
 //! a radius from their axes: [`onto_axes`] moves them there, so that the centrelines grown through
 //! them run along the axes. The period can be read off the hair surface's bumps along the axes
-//! ([`period`]). [`sweep_helices`] then replaces each grown strand by a helix about its own
-//! centreline ([`helix`]). Which curl a capture has is decided by [`crate::curl_choice`].
+//! (`period`). [`sweep_helices`] then replaces each grown strand by a helix about its own
+//! centreline (`helix`). Which curl a capture has is decided by [`crate::curl_choice`].
 //!
 //! This is our addition to the paper's method (its strand initialization has no curl model); see
 //! `docs/method.md`.

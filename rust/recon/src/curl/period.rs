@@ -59,7 +59,7 @@ pub struct BumpReport {
 /// `min_contrast` lower. `None` when there is no such pair (a smooth surface: straight or wavy hair).
 ///
 /// The axes' directions only need to be near the ringlets' (the axes at the nominal pitch of
-/// [`ringlet_axes`] are within 20° for three quarters of the points on the paper curly preset): the
+/// [`crate::curl::ringlet_axes`] are within 20° for three quarters of the points on the paper curly preset): the
 /// period seen along a direction δ off the axis is 1/cos δ longer (6% at 20°).
 ///
 /// Measured at commit cfcd40a on the ringlet axes of saved directed points

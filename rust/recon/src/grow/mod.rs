@@ -41,7 +41,7 @@ mod smooth;
 #[cfg(test)]
 mod tests;
 
-pub use children::{interpolate_children, straight_strands, GuideBlend};
+pub use children::{interpolate_children, straight_strands, GuideBlend, PARTING_ARC};
 pub use smooth::{cut_at_arc, smooth_guides, SmoothStats};
 
 /// How a child blends the guides, shared by [`interpolate_children`] and the DR's child map (so

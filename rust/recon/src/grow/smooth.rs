@@ -91,7 +91,7 @@ pub struct SmoothStats {
 /// tracing noise over centimetres. The default since commit 8a37645, when the DR test's one uneven
 /// strand (`tests/pipeline_dr.rs`, a max/min segment ratio of 2.02) turned out to be a child
 /// blending two guides on either side of a parting, now prevented by
-/// [`BlendParams::parting_reach`].
+/// [`super::BlendParams::parting_reach`].
 pub fn smooth_guides(
     guides: &StrandSet,
     points: Option<&PointIndex>,
