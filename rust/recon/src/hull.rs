@@ -190,11 +190,11 @@ impl VisualHull {
             if (img.width, img.height) != (w, h) {
                 return Err(HullError::Size { view: i, got: img.data.len(), width: w, height: h });
             }
-            if !solid(&img.data, params.min_solid) {
+            if !crate::views::solid(&img.data, params.min_solid) {
                 continue;
             }
             let mask = img.data.iter().map(|&c| c >= params.mask_threshold).collect();
-            let depth = head.map(|h| crate::dr::DrView::head_depth_map(&v.camera, h));
+            let depth = head.map(|h| crate::views::head_depth_map(&v.camera, h));
             views.push((v.camera, mask, depth));
         }
         if views.is_empty() {
@@ -284,17 +284,6 @@ impl VisualHull {
         }
         Ok((set, stats))
     }
-}
-
-/// Whether the median of the coverages above 1% is at least `min_solid` (false without any).
-pub(crate) fn solid(coverage: &[f32], min_solid: f32) -> bool {
-    let mut c: Vec<f32> = coverage.iter().copied().filter(|&x| x > 0.01).collect();
-    if c.is_empty() {
-        return false;
-    }
-    let mid = c.len() / 2;
-    let (_, m, _) = c.select_nth_unstable_by(mid, f32::total_cmp);
-    *m >= min_solid
 }
 
 /// The row-major index of the pixel holding `px`, if inside the image.
@@ -405,9 +394,9 @@ mod tests {
         // Sparse hair: most hair pixels partly covered.
         let sparse: Vec<f32> = (0..100).map(|i| if i % 4 == 0 { 0.9 } else { 0.2 }).collect();
         let filled: Vec<f32> = (0..100).map(|i| if i % 4 == 0 { 0.2 } else { 1.0 }).collect();
-        assert!(!solid(&sparse, 0.5));
-        assert!(solid(&filled, 0.5));
-        assert!(!solid(&[0.0; 10], 0.5), "no hair at all says nothing");
+        assert!(!crate::views::solid(&sparse, 0.5));
+        assert!(crate::views::solid(&filled, 0.5));
+        assert!(!crate::views::solid(&[0.0; 10], 0.5), "no hair at all says nothing");
     }
 
     #[test]

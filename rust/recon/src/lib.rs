@@ -21,6 +21,7 @@
 //! - [`eval`]: scores against ground truth, beside the run; [`report`]: `report.json`.
 //! - [`raw_mesh`]: the fallback raw mesh, TSDF fusion of depth maps.
 //! - [`progress`]: how a long stage reports progress and learns it was cancelled.
+//! - [`views`]: what a view sees (the head's depth, solid masks), shared by the stages.
 
 pub mod config;
 pub mod curl;
@@ -42,6 +43,7 @@ pub mod report;
 pub mod roots;
 pub mod runner;
 pub mod stages;
+pub mod views;
 
 pub use config::{ReconstructConfig, Stage};
 pub use error::ReconError;

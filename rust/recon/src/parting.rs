@@ -142,7 +142,7 @@ pub fn find_partings(
                 height: h,
             });
         }
-        if !crate::hull::solid(&img.data, crate::hull::HullParams::default().min_solid) {
+        if !crate::views::solid(&img.data, crate::hull::HullParams::default().min_solid) {
             continue;
         }
         stats.views += 1;

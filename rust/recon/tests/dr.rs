@@ -67,7 +67,7 @@ fn targets(gt: &StrandSet, cams: &[Camera], head: &Bvh, width_m: f32) -> DrTarge
         .enumerate()
         .map(|(i, cam)| {
             let img = r.forward(cam, gt.points(), &segs, settings).unwrap().clone();
-            let depth = DrView::head_depth_map(cam, head);
+            let depth = hairrecon_recon::views::head_depth_map(cam, head);
             let n = img.num_pixels();
             let mut mask = vec![0.0; n];
             let mut orient = vec![[0.0f32; 3]; n];

@@ -122,24 +122,6 @@ impl DrView {
             .collect();
         Ok(Self { camera, mask, orientation, head_depth })
     }
-
-    /// The head's depth per pixel seen by `camera`, by ray casting (`f32::INFINITY` where the ray
-    /// misses).
-    pub fn head_depth_map(camera: &Camera, head: &Bvh) -> Vec<f32> {
-        let (w, h) = (camera.width() as usize, camera.height() as usize);
-        let c = camera.center();
-        (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let px = Vec2::new((i % w) as f32, (i / w) as f32);
-                let d = camera.ray_direction(px);
-                match head.ray_cast(c, d, 0.0, f32::INFINITY) {
-                    Some(hit) => camera.to_camera(c + d * hit.t).z,
-                    None => f32::INFINITY,
-                }
-            })
-            .collect()
-    }
 }
 
 /// The targets of every view.
@@ -173,7 +155,7 @@ impl DrTargets {
             };
             let orientation =
                 m.theta.iter().zip(&m.confidence).map(|(t, c)| [(2.0 * t).cos(), (2.0 * t).sin(), *c]).collect();
-            let depth = head.map(|h| DrView::head_depth_map(&v.camera, h));
+            let depth = head.map(|h| crate::views::head_depth_map(&v.camera, h));
             views.push(DrView::new(i, v.camera, mask, orientation, depth)?);
         }
         Ok(Self { views })
