@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use hairrecon_core::capture::Capture;
 use hairrecon_core::metric::MetricReport;
 use hairrecon_recon::config::{ConfigFile, ReconstructConfig, Stage};
+use hairrecon_recon::curl::CurlError;
 use hairrecon_recon::progress::Progress;
 use hairrecon_recon::{reconstruct, Plan};
 use indicatif::ProgressBar;
@@ -216,7 +217,7 @@ fn config(a: &ReconstructArgs) -> Result<ReconstructConfig, Box<dyn std::error::
     c.hull_trim &= !a.no_hull_trim;
     c.parting.enabled &= !a.no_parting;
     if let Some(curl) = &a.curl {
-        c.curl = curl.parse().map_err(|e: String| format!("--curl: {e}"))?;
+        c.curl = curl.parse().map_err(|e: CurlError| format!("--curl: {e}"))?;
     }
     c.validate()?;
     Ok(c)

@@ -11,6 +11,7 @@ use std::thread::JoinHandle;
 
 use hairrecon_core::capture::Capture;
 use hairrecon_recon::config::{ConfigFile, ReconstructConfig, Stage};
+use hairrecon_recon::curl::CurlError;
 use hairrecon_recon::progress::{Progress, SharedProgress};
 use hairrecon_recon::{reconstruct as run_pipeline, Plan, ReconError, ReconstructOutput};
 use pyo3::prelude::*;
@@ -66,7 +67,7 @@ fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
     c.hull_trim = a.hull_trim.unwrap_or(c.hull_trim);
     c.parting.enabled = a.parting.unwrap_or(c.parting.enabled);
     if let Some(curl) = a.curl {
-        c.curl = curl.parse().map_err(|e: String| input_err(format!("curl: {e}")))?;
+        c.curl = curl.parse().map_err(|e: CurlError| input_err(format!("curl: {e}")))?;
     }
     c.validate().map_err(input_err)?;
     let plan = Plan {

@@ -181,7 +181,7 @@ impl ReconstructConfig {
             return Err(ConfigError::Invalid(format!("straight_length {} must be positive", self.straight_length)));
         }
         if let CurlMode::Fixed(c) = self.curl {
-            c.validate().map_err(ConfigError::Invalid)?;
+            c.validate().map_err(|e| ConfigError::Invalid(e.to_string()))?;
         }
         Ok(())
     }

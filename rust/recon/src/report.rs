@@ -121,9 +121,8 @@ impl Report {
     }
 
     /// Writes `report.json` atomically.
-    pub fn save(&self, path: &Path) -> Result<(), hairrecon_core::FormatError> {
-        let text = serde_json::to_string_pretty(self).unwrap_or_default();
-        hairrecon_core::formats::atomic_write(path, |w| Ok(std::io::Write::write_all(w, text.as_bytes())?))
+    pub fn save(&self, path: &Path) -> Result<(), crate::error::ReconError> {
+        crate::stages::write_json(path, self)
     }
 }
 

@@ -46,19 +46,39 @@ impl Curl {
         (std::f32::consts::TAU * self.radius / self.period).atan()
     }
 
-    /// Checks the values; the message names the bad one.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks the values; the error names the bad one.
+    pub fn validate(&self) -> Result<(), CurlError> {
         if !(self.radius.is_finite() && self.radius > 0.0 && self.radius < 0.1) {
-            return Err(format!("curl radius {} m: give a radius in (0, 100) mm", self.radius));
+            return Err(CurlError::Radius(self.radius));
         }
         if !(self.period.is_finite() && self.period > 0.0 && self.period < 1.0) {
-            return Err(format!("curl period {} m: give a period in (0, 1000) mm", self.period));
+            return Err(CurlError::Period(self.period));
         }
         if self.hand != 1.0 && self.hand != -1.0 {
-            return Err(format!("curl handedness {}: give 1 (right) or -1 (left)", self.hand));
+            return Err(CurlError::Hand(self.hand));
         }
         Ok(())
     }
+}
+
+/// Why a curl (or its text form) cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CurlError {
+    /// The text is not `off`, `auto` or numbers.
+    #[error("curl {0:?}: give off, auto or RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)")]
+    Syntax(String),
+    /// Not three numbers.
+    #[error("curl {0:?}: give three numbers RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)")]
+    Count(String),
+    /// The radius (metres) is not in (0, 0.1).
+    #[error("curl radius {0} m: give a radius in (0, 100) mm")]
+    Radius(f32),
+    /// The period (metres) is not in (0, 1).
+    #[error("curl period {0} m: give a period in (0, 1000) mm")]
+    Period(f32),
+    /// The handedness is not 1 or -1.
+    #[error("curl handedness {0}: give 1 (right) or -1 (left)")]
+    Hand(f32),
 }
 
 /// Whether and how the pipeline makes curls.
@@ -76,20 +96,21 @@ pub enum CurlMode {
 }
 
 impl std::str::FromStr for CurlMode {
-    type Err = String;
+    type Err = CurlError;
 
     /// `off`, `auto` or `RADIUS_MM,PERIOD_MM,HAND` (HAND 1 right-handed, -1 left-handed).
-    fn from_str(s: &str) -> Result<Self, String> {
+    fn from_str(s: &str) -> Result<Self, CurlError> {
         match s {
             "off" => Ok(Self::Off),
             "auto" => Ok(Self::Auto),
             _ => {
-                let v: Vec<f32> =
-                    s.split(',').map(|x| x.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| {
-                        format!("curl {s:?}: give off, auto or RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)")
-                    })?;
+                let v: Vec<f32> = s
+                    .split(',')
+                    .map(|x| x.trim().parse::<f32>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| CurlError::Syntax(s.into()))?;
                 let [r, p, h] = v[..] else {
-                    return Err(format!("curl {s:?}: give three numbers RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)"));
+                    return Err(CurlError::Count(s.into()));
                 };
                 let c = Curl { radius: r / 1000.0, period: p / 1000.0, hand: h };
                 c.validate()?;
@@ -220,10 +241,10 @@ mod tests {
         assert_eq!("off".parse::<CurlMode>(), Ok(CurlMode::Off));
         assert_eq!("auto".parse::<CurlMode>(), Ok(CurlMode::Auto));
         assert_eq!(" 6.5, 22 ,1".parse::<CurlMode>(), Ok(CurlMode::Fixed(CURL)));
-        assert!("6.5,22".parse::<CurlMode>().unwrap_err().contains("three numbers"));
-        assert!("6.5,0,1".parse::<CurlMode>().unwrap_err().contains("period"));
-        assert!("0,22,1".parse::<CurlMode>().unwrap_err().contains("radius"));
-        assert!("6.5,22,0".parse::<CurlMode>().unwrap_err().contains("handedness"));
+        assert!("6.5,22".parse::<CurlMode>().unwrap_err().to_string().contains("three numbers"));
+        assert!("6.5,0,1".parse::<CurlMode>().unwrap_err().to_string().contains("period"));
+        assert!("0,22,1".parse::<CurlMode>().unwrap_err().to_string().contains("radius"));
+        assert!("6.5,22,0".parse::<CurlMode>().unwrap_err().to_string().contains("handedness"));
     }
 
     #[test]

@@ -27,7 +27,7 @@ use crate::orient2d::OrientationMap;
 use crate::oriented_points::OrientedPoints;
 use crate::parting::clear_points;
 use crate::roots::{sample_roots, Roots, Scalp};
-use crate::stages::{need, Context};
+use crate::stages::{need, write_json, Context};
 
 /// What the init stage measured along the way.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -216,9 +216,7 @@ impl InitOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
         write_strands(ctx.path(GUIDES), &self.guides)?;
         write_strands(ctx.path(CHILDREN), &self.children)?;
-        let text = serde_json::to_string_pretty(&self.info).unwrap_or_default();
-        hairrecon_core::formats::atomic_write(ctx.path(INFO), |w| Ok(std::io::Write::write_all(w, text.as_bytes())?))?;
-        Ok(())
+        write_json(&ctx.path(INFO), &self.info)
     }
 
     pub fn load(ctx: &Context<'_>, from: Stage) -> Result<Self, ReconError> {

@@ -108,6 +108,13 @@ pub(crate) fn remove(path: &Path) -> Result<(), ReconError> {
     }
 }
 
+/// Writes `value` as pretty JSON, atomically.
+pub(crate) fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<(), ReconError> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| ReconError::Write { path: path.into(), source: std::io::Error::other(e) })?;
+    Ok(hairrecon_core::formats::atomic_write(path, |w| Ok(std::io::Write::write_all(w, text.as_bytes())?))?)
+}
+
 /// Creates a folder.
 pub(crate) fn mkdir(p: &Path) -> Result<(), ReconError> {
     std::fs::create_dir_all(p).map_err(|source| ReconError::OutDir { path: p.into(), source })

@@ -11,7 +11,7 @@ use crate::error::ReconError;
 use crate::oriented_points::OrientedPoints;
 use crate::parting::{find_partings, PartingParams, PartingStats};
 use crate::roots::Scalp;
-use crate::stages::{need, remove, Context};
+use crate::stages::{need, remove, write_json, Context};
 
 const FILE: &str = "partings.ply";
 const STATS: &str = "partings.json";
@@ -56,9 +56,7 @@ impl PartingsOut {
             .save_ply(&path)?,
             None => remove(&path)?,
         }
-        let text = serde_json::to_string_pretty(&self.stats).unwrap_or_default();
-        hairrecon_core::formats::atomic_write(ctx.path(STATS), |w| Ok(std::io::Write::write_all(w, text.as_bytes())?))?;
-        Ok(())
+        write_json(&ctx.path(STATS), &self.stats)
     }
 
     /// The scalp with the partings an earlier run saved (none when it saved no file).
