@@ -311,12 +311,9 @@ impl OrientedPoints {
         Self { index: PointIndex::new(points, tangents) }
     }
 
-    /// Resamples strands by arc length with `step` and builds the tree.
+    /// Resamples strands by arc length with `step` ([`PointIndex::from_strands`]) and builds the tree.
     pub fn from_strands(strands: &StrandSet, step: f32) -> Result<Self, StrandError> {
-        let r = strands.resample_by_arclength(step)?;
-        let t = r.tangents();
-        let (points, _) = r.into_parts();
-        Ok(Self::new(points, t))
+        Ok(Self { index: PointIndex::from_strands(strands, step)? })
     }
 
     /// For a query point and tangent, a bit mask: bit `i` is set when some point of this set

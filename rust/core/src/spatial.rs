@@ -1,18 +1,16 @@
-//! Spatial queries shared by every stage: one kd-tree index over oriented points, and one sampler
-//! of strands by arc length.
+//! Spatial queries shared by every stage: one kd-tree index over oriented points.
 //!
 //! [`PointIndex`] holds points with unit tangents and a kd-tree over the points (kiddo's
 //! `ImmutableKdTree`, a static tree built once): k nearest, all within a radius, and the best
-//! undirected match within a distance and an angle. [`sample_by_arc`] walks each strand and emits
-//! a point every `step` of arc length (the remainder carried from one segment to the next), with the
-//! segment's root-to-tip unit tangent.
+//! undirected match within a distance and an angle. Strands become points by the one arc-length
+//! sampler, [`StrandSet::resample_by_arclength`], with [`StrandSet::tangents`].
 
 use std::num::NonZero;
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::StrandSet;
+use crate::{StrandError, StrandSet};
 
 /// Points with unit tangents and a kd-tree over the points.
 #[derive(Debug)]
@@ -31,10 +29,12 @@ impl PointIndex {
         Self { points, tangents, tree }
     }
 
-    /// Strand points sampled every `step` metres of arc ([`sample_by_arc`]) with root→tip unit tangents.
-    pub fn from_strands(strands: &StrandSet, step: f32) -> Self {
-        let (points, tangents) = sample_by_arc(strands, step);
-        Self::new(points, tangents)
+    /// Strand points every `step` metres of arc, root and tip included
+    /// ([`StrandSet::resample_by_arclength`]), with root→tip unit tangents.
+    pub fn from_strands(strands: &StrandSet, step: f32) -> Result<Self, StrandError> {
+        let r = strands.resample_by_arclength(step)?;
+        let tangents = r.tangents();
+        Ok(Self::new(r.into_parts().0, tangents))
     }
 
     pub fn len(&self) -> usize {
@@ -94,47 +94,22 @@ impl PointIndex {
     }
 }
 
-/// Samples strands every `step` of arc length with unit tangents (root → tip): the first point at
-/// each root, the remainder of a segment carried into the next; zero-length segments are skipped.
-pub fn sample_by_arc(strands: &StrandSet, step: f32) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut pts = Vec::new();
-    let mut tans = Vec::new();
-    for s in strands.iter() {
-        let mut carry = 0.0f32;
-        for w in s.windows(2) {
-            let d = w[1] - w[0];
-            let len = d.length();
-            if len <= 1e-9 {
-                continue;
-            }
-            let t = d / len;
-            let mut a = carry;
-            while a < len {
-                pts.push(w[0] + t * a);
-                tans.push(t);
-                a += step;
-            }
-            carry = a - len;
-        }
-    }
-    (pts, tans)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn a_straight_strand_is_sampled_every_step_with_its_tangent() {
-        // 10 cm in two segments of 4 and 6 cm: samples every 1 cm at 0, 1, ..., 9 cm.
+    fn a_strand_is_indexed_every_step_from_root_to_tip_with_its_tangent() {
+        // 0.75 in two segments of 0.25 and 0.5 (binary fractions: exact): samples every 0.125.
         let s =
-            StrandSet::new(vec![Vec3::ZERO, Vec3::new(0.0, 0.0, -0.04), Vec3::new(0.0, 0.0, -0.1)], vec![3]).unwrap();
-        let (p, t) = sample_by_arc(&s, 0.01);
-        assert_eq!(p.len(), 10);
-        for (k, q) in p.iter().enumerate() {
-            assert!((q.z + 0.01 * k as f32).abs() < 1e-6, "{k}: {q}");
+            StrandSet::new(vec![Vec3::ZERO, Vec3::new(0.0, 0.0, -0.25), Vec3::new(0.0, 0.0, -0.75)], vec![3]).unwrap();
+        let index = PointIndex::from_strands(&s, 0.125).unwrap();
+        assert_eq!(index.len(), 7);
+        for (k, q) in index.points.iter().enumerate() {
+            assert_eq!(q.z, -0.125 * k as f32, "{k}: {q}");
         }
-        assert!(t.iter().all(|t| *t == Vec3::NEG_Z));
+        assert!(index.tangents.iter().all(|t| *t == Vec3::NEG_Z));
+        assert!(PointIndex::from_strands(&s, 0.0).is_err());
     }
 
     #[test]

@@ -68,9 +68,9 @@ pub enum ReconError {
          head (check the raw mesh's units, metres expected), or run with --curl off"
     )]
     CurlGrid,
-    /// The curled strands are invalid.
-    #[error("the curled strands: {0}")]
-    Curl(#[from] hairrecon_core::strands::StrandError),
+    /// Strands that a stage made (e.g. the curled ones) are invalid.
+    #[error("strands: {0}")]
+    Strands(#[from] hairrecon_core::strands::StrandError),
 }
 
 impl From<HullError> for ReconError {

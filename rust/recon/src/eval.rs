@@ -53,7 +53,7 @@ impl GroundTruth {
     pub fn load(capture: &Capture, raw: &Bvh) -> Result<Option<Self>, ReconError> {
         let Some(p) = &capture.gt_strands else { return Ok(None) };
         let strands = read_strands(p)?;
-        let index = PointIndex::from_strands(&strands, 0.001);
+        let index = PointIndex::from_strands(&strands, 0.001)?;
         let surface = (0..index.len())
             .into_par_iter()
             .filter(|&i| raw.signed_distance(index.points[i], 0.02).is_some_and(|d| d > -SURFACE_BAND))
@@ -273,8 +273,8 @@ mod tests {
     #[test]
     fn points_on_a_strand_match_it() {
         let s = StrandSet::new(vec![Vec3::ZERO, Vec3::new(0.0, 0.0, -0.1)], vec![2]).unwrap();
-        let gt = PointIndex::from_strands(&s, 0.001);
-        assert_eq!(gt.len(), 100);
+        let gt = PointIndex::from_strands(&s, 0.001).unwrap();
+        assert_eq!(gt.len(), 101, "every millimetre, root and tip");
         let pos = vec![Vec3::new(0.001, 0.0, -0.05), Vec3::new(0.01, 0.0, -0.05), Vec3::new(0.0, 0.0, -0.02)];
         let dir = vec![Vec3::Z, Vec3::Z, Vec3::X];
         let all: Vec<usize> = (0..gt.len()).collect();
