@@ -62,6 +62,21 @@ impl Stage {
     }
 }
 
+/// Which stages a run makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Plan {
+    /// The first stage run; the earlier ones are reloaded from the output folder.
+    pub from: Stage,
+    /// The last stage run (`None`: all; without DR in the config, init is the last).
+    pub stop_after: Option<Stage>,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Self { from: Stage::Orient2d, stop_after: None }
+    }
+}
+
 /// A stage name that is not one of [`Stage::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("stage {0:?} is unknown; use one of orient2d, orient3d, partings, direction, init, dr")]

@@ -45,6 +45,6 @@ pub mod runner;
 pub mod stages;
 pub mod views;
 
-pub use config::{ReconstructConfig, Stage};
+pub use config::{Plan, ReconstructConfig, Stage};
 pub use error::ReconError;
-pub use runner::{reconstruct, Plan, ReconstructOutput};
+pub use runner::{reconstruct, ReconstructOutput};

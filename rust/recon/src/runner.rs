@@ -16,7 +16,7 @@ use std::time::Instant;
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::write_strands;
 
-use crate::config::{ConfigFile, ReconstructConfig, Stage};
+use crate::config::{ConfigFile, Plan, ReconstructConfig, Stage};
 use crate::error::ReconError;
 use crate::eval::Evaluator;
 use crate::progress::Progress;
@@ -27,21 +27,6 @@ use crate::stages::orient2d::Orient2dOut;
 use crate::stages::orient3d::Orient3dOut;
 use crate::stages::partings::PartingsOut;
 use crate::stages::{self, mkdir, remove, Context};
-
-/// Which stages a run makes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Plan {
-    /// The first stage run; the earlier ones are reloaded from the output folder.
-    pub from: Stage,
-    /// The last stage run (`None`: all; without DR in the config, init is the last).
-    pub stop_after: Option<Stage>,
-}
-
-impl Default for Plan {
-    fn default() -> Self {
-        Self { from: Stage::Orient2d, stop_after: None }
-    }
-}
 
 /// What a run produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,111 +65,122 @@ pub fn reconstruct(
     }
     ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
     let ctx = Context::new(capture, out_dir, progress);
-    let eval = Evaluator::new(capture);
     let mut report = Report::resumed(&capture.dir, out_dir, from);
-    let runs = |s: Stage| from <= s && s <= last;
-    let finish = |report: Report| -> Result<ReconstructOutput, ReconError> {
-        report.save(&out_dir.join("report.json"))?;
-        let file = |name: &str, made: bool| made.then(|| out_dir.join(name));
-        Ok(ReconstructOutput {
-            strands: file("strands.hair", last >= Stage::Init),
-            guides: file("guides.hair", last >= Stage::Init),
-            init_strands: file("init_strands.hair", last >= Stage::Init),
-            init_guides: file("init_guides.hair", last >= Stage::Init),
-            loss_csv: file("loss.csv", last == Stage::Dr),
-            report,
-        })
-    };
+    // The report is written whatever happens: a cancelled or failed run lists the stages it finished.
+    let run = run_stages(&ctx, cfg, &mut report, from, last);
+    let saved = report.save(&out_dir.join("report.json"));
+    run?;
+    saved?;
+    let file = |name: &str, made: bool| made.then(|| out_dir.join(name));
+    Ok(ReconstructOutput {
+        strands: file("strands.hair", last >= Stage::Init),
+        guides: file("guides.hair", last >= Stage::Init),
+        init_strands: file("init_strands.hair", last >= Stage::Init),
+        init_guides: file("init_guides.hair", last >= Stage::Init),
+        loss_csv: file("loss.csv", last == Stage::Dr),
+        report,
+    })
+}
 
+/// The stages from `from` to `last`, recorded in `report`.
+fn run_stages(
+    ctx: &Context<'_>,
+    cfg: &ReconstructConfig,
+    report: &mut Report,
+    from: Stage,
+    last: Stage,
+) -> Result<(), ReconError> {
+    let eval = Evaluator::new(ctx.capture);
+    let runs = |s: Stage| from <= s && s <= last;
     let t = Instant::now();
     let maps = if runs(Stage::Orient2d) {
-        let o = stages::orient2d::run(&ctx, cfg)?;
-        o.save(&ctx, cfg.write_pictures)?;
+        let o = stages::orient2d::run(ctx, cfg)?;
+        o.save(ctx, cfg.write_pictures)?;
         report.record(Stage::Orient2d, t.elapsed().as_secs_f64(), &());
         report.scores.orient2d = eval.orient2d(&o.maps)?;
         o.maps
     } else {
-        Orient2dOut::load(&ctx, from)?.maps
+        Orient2dOut::load(ctx, from)?.maps
     };
     if last == Stage::Orient2d {
-        return finish(report);
+        return Ok(());
     }
 
     let t = Instant::now();
     let points = if runs(Stage::Orient3d) {
-        let o = stages::orient3d::run(&ctx, cfg, &maps)?;
-        o.save(&ctx)?;
+        let o = stages::orient3d::run(ctx, cfg, &maps)?;
+        o.save(ctx)?;
         report.record(Stage::Orient3d, t.elapsed().as_secs_f64(), &());
         report.scores.orient3d = eval.points(ctx.raw()?, &o.points)?;
         Some(o.points)
     } else if runs(Stage::Direction) {
-        Some(Orient3dOut::load(&ctx, from)?.points)
+        Some(Orient3dOut::load(ctx, from)?.points)
     } else {
         None
     };
     if last == Stage::Orient3d {
-        return finish(report);
+        return Ok(());
     }
 
     let t = Instant::now();
     let scalp = if runs(Stage::Partings) {
-        let o = stages::partings::run(&ctx, cfg)?;
-        o.save(&ctx)?;
+        let o = stages::partings::run(ctx, cfg)?;
+        o.save(ctx)?;
         report.record(Stage::Partings, t.elapsed().as_secs_f64(), &o.stats);
         o.scalp
     } else {
-        PartingsOut::load(&ctx, from, &cfg.parting)?.scalp
+        PartingsOut::load(ctx, from, &cfg.parting)?.scalp
     };
     if last == Stage::Partings {
-        return finish(report);
+        return Ok(());
     }
 
     let t = Instant::now();
     let directed = match points {
         Some(points) => {
-            let o = stages::direction::run(&ctx, cfg, &points, &scalp)?;
-            o.save(&ctx)?;
+            let o = stages::direction::run(ctx, cfg, &points, &scalp)?;
+            o.save(ctx)?;
             report.record(Stage::Direction, t.elapsed().as_secs_f64(), &o.stats);
             report.scores.direction = eval.directions(ctx.raw()?, &o.directed)?;
             o.directed
         }
-        None if runs(Stage::Init) => DirectionOut::load(&ctx, from)?.directed,
+        None if runs(Stage::Init) => DirectionOut::load(ctx, from)?.directed,
         None => Default::default(),
     };
     if last == Stage::Direction {
-        return finish(report);
+        return Ok(());
     }
 
     let t = Instant::now();
     let init = if runs(Stage::Init) {
-        let o = stages::init::run(&ctx, cfg, &directed, &scalp, &maps)?;
-        o.save(&ctx)?;
+        let o = stages::init::run(ctx, cfg, &directed, &scalp, &maps)?;
+        o.save(ctx)?;
         report.record(Stage::Init, t.elapsed().as_secs_f64(), &o.stats);
         report.warnings.extend(o.stats.hull_warning.clone());
         if let (Some(axes), Some(c)) = (&o.seen_axes, o.info.curl) {
             report.scores.axes = eval.axes(ctx.raw()?, axes, &c)?;
         }
-        progress.update("metrics", 0.0, "scoring strands");
+        ctx.progress.update("metrics", 0.0, "scoring strands");
         report.scores.init_guides = eval.strands(ctx.raw()?, &o.guides)?;
         report.scores.init_strands = eval.strands(ctx.raw()?, &o.children)?;
         o
     } else {
-        InitOut::load(&ctx, from)?
+        InitOut::load(ctx, from)?
     };
     drop(directed);
     if last == Stage::Init {
         write_strands(ctx.path("guides.hair"), &init.guides)?;
         write_strands(ctx.path("strands.hair"), &init.children)?;
-        return finish(report);
+        return Ok(());
     }
 
     let t = Instant::now();
-    let o = stages::dr::run(&ctx, cfg, &init, &maps, &scalp)?;
-    o.save(&ctx)?;
+    let o = stages::dr::run(ctx, cfg, &init, &maps, &scalp)?;
+    o.save(ctx)?;
     report.record(Stage::Dr, t.elapsed().as_secs_f64(), &o.stats);
-    progress.update("metrics", 0.5, "scoring strands");
+    ctx.progress.update("metrics", 0.5, "scoring strands");
     report.scores.dr_guides = eval.strands(ctx.raw()?, &o.guides)?;
     report.scores.dr_strands = eval.strands(ctx.raw()?, &o.children)?;
-    progress.update("dr", 1.0, "");
-    finish(report)
+    ctx.progress.update("dr", 1.0, "");
+    Ok(())
 }
