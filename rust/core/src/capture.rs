@@ -70,6 +70,11 @@ pub enum CaptureError {
     Camera { view: String, path: PathBuf, source: CameraError },
     #[error("{path}: two views are named {view:?}; view names must be unique")]
     DuplicateView { path: PathBuf, view: String },
+    #[error(
+        "{path}: the view name {view:?} cannot be a file name (outputs are written as <name>.exr and <name>.png); \
+         rename it without '/', '\\', control characters or any of <>:\"|?*, not \".\" or \"..\", at most 200 bytes"
+    )]
+    BadViewName { path: PathBuf, view: String },
     #[error("{path}: {what} is empty; give the file's path relative to the capture folder")]
     EmptyPath { path: PathBuf, what: String },
     #[error("{path}: {msg}")]
@@ -213,6 +218,9 @@ impl CaptureSpec {
         let mut names = std::collections::HashSet::new();
         let mut cameras = Vec::with_capacity(self.views.len());
         for v in &self.views {
+            if !is_plain_name(&v.name) {
+                return Err(CaptureError::BadViewName { path: json.into(), view: v.name.clone() });
+            }
             if !names.insert(v.name.as_str()) {
                 return Err(CaptureError::DuplicateView { path: json.into(), view: v.name.clone() });
             }
@@ -355,6 +363,17 @@ fn check_image(view: &str, what: &'static str, file: &Path, width: u32, height: 
         return Err(CaptureError::SizeMismatch { view: view.into(), file: file.into(), width, height, got_w, got_h });
     }
     Ok(())
+}
+
+/// Whether a view name can be a file name in any folder: stages write `<name>.exr` and
+/// `<name>.png`, so a name must not reach outside the folder (no `/` or `\\`, not `.` or `..`) and
+/// must be a valid file name on Linux, macOS and Windows (no control characters, none of `<>:"|?*`).
+fn is_plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 200
+        && name != "."
+        && name != ".."
+        && !name.chars().any(|c| c.is_control() || matches!(c, '/' | '\\' | '<' | '>' | ':' | '"' | '|' | '?' | '*'))
 }
 
 #[cfg(test)]
@@ -506,6 +525,18 @@ mod tests {
         let mut s = spec();
         s.views.push(s.views[0].clone());
         assert!(matches!(write(&s), CaptureError::DuplicateView { .. }));
+        // A view name becomes an output file name: nothing may reach outside the output folder.
+        for bad in ["", ".", "..", "../../other/images/y", "/tmp/x", "a\\b", "v\n0"] {
+            let mut s = spec();
+            s.views[0].name = bad.into();
+            let e = write(&s);
+            assert!(matches!(e, CaptureError::BadViewName { .. }), "{bad:?}: {e}");
+        }
+        for good in ["IMG_0001.JPG", "view 3", "cam-2.left", "Camera (1)", "caméra_é"] {
+            let mut s = spec();
+            s.views[0].name = good.into();
+            assert!(s.validate(&json).is_ok(), "{good:?}");
+        }
         let mut s = spec();
         s.views.clear();
         assert!(matches!(write(&s), CaptureError::NoViews { .. }));
