@@ -77,6 +77,7 @@ impl Class {
         match e {
             ReconError::Cancelled(_) => Class::Cancelled,
             ReconError::Format(_) | ReconError::Orient2d(_) | ReconError::Points(_) => Class::Format,
+            ReconError::StageFile { .. } => Class::Format,
             ReconError::OutDir { .. } | ReconError::Write { .. } => Class::Format,
             ReconError::NoScalp { .. } | ReconError::Scalp { .. } => Class::Capture,
             ReconError::Config(_) | ReconError::EmptyPlan { .. } | ReconError::MissingStageOutput { .. } => {

@@ -44,6 +44,9 @@ pub enum ReconError {
          or the whole pipeline"
     )]
     MissingStageOutput { from: Stage, needs: Stage, path: PathBuf },
+    /// A file an earlier stage saved cannot be read back.
+    #[error("{path} cannot be read back: {msg}; run the stage that writes it again (--from {stage})")]
+    StageFile { stage: Stage, path: PathBuf, msg: String },
     /// `--from` lies after `--stop-after`.
     #[error("--from {from} comes after --stop-after {stop}: nothing to run")]
     EmptyPlan { from: Stage, stop: Stage },

@@ -223,7 +223,7 @@ impl InitOut {
         let info_path = need(ctx, from, Stage::Init, INFO)?;
         let guides = read_strands(need(ctx, from, Stage::Init, GUIDES)?)?;
         let children = read_strands(need(ctx, from, Stage::Init, CHILDREN)?)?;
-        let bad = |msg: String| ReconError::Write { path: info_path.clone(), source: std::io::Error::other(msg) };
+        let bad = |msg: String| ReconError::StageFile { stage: Stage::Init, path: info_path.clone(), msg };
         let text = std::fs::read_to_string(&info_path).map_err(|e| bad(e.to_string()))?;
         let info: InitInfo = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
         Ok(Self { guides, children, info, stats: InitStats::default(), seen_axes: None })

@@ -69,14 +69,7 @@ impl Orient2dOut {
     /// Reads the maps an earlier run saved; `from` names the stage that asks (for the error).
     pub fn load(ctx: &Context<'_>, from: Stage) -> Result<Self, ReconError> {
         let path = need(ctx, from, Stage::Orient2d, "orient2d/maps.bin")?;
-        let bad = |msg: String| {
-            ReconError::Format(hairrecon_core::FormatError {
-                path: Some(path.clone()),
-                kind: hairrecon_core::FormatErrorKind::Io(std::io::Error::other(format!(
-                    "{msg}; run the orient2d stage again (--from orient2d)"
-                ))),
-            })
-        };
+        let bad = |msg: String| ReconError::StageFile { stage: Stage::Orient2d, path: path.clone(), msg };
         let bytes = std::fs::read(&path).map_err(|e| bad(e.to_string()))?;
         let mut r = &bytes[..];
         let u32_at = |r: &mut &[u8]| -> Result<u32, ReconError> {
