@@ -1,0 +1,11 @@
+//! Importers of real captures: camera calibrations from photogrammetry tools and the photos that
+//! go with them, turned into a hairrecon capture folder (`hairrecon_core::capture`).
+//!
+//! Data flows one way: a reader (`colmap`, `metashape`, `nerf`) turns a calibration file into a
+//! [`Scene`] (views with pinhole intrinsics, a lens [`Distortion`] and an OpenCV pose, in the
+//! file's own frame and units); `photo` loads each view's photo, undistorts it and scales it to the
+//! working height; `capture_writer` writes the capture folder.
+
+pub mod scene;
+
+pub use scene::{Distortion, Intrinsics, Scene, SceneView, Units};
