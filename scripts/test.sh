@@ -5,24 +5,29 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
+step() { echo "== $* (at $(( $(date +%s) - start )) s)"; }
 bash scripts/setup_env.sh --blender42
+# the test-preset capture is rendered once and shared by both pytest runs (tests/python/conftest.py)
+HAIRRECON_TEST_CAPTURE_CACHE="$(mktemp -d)"
+export HAIRRECON_TEST_CAPTURE_CACHE
+trap 'rm -rf "$HAIRRECON_TEST_CAPTURE_CACHE"' EXIT
 
-echo "== cargo fmt --check"
+step "cargo fmt --check"
 cargo fmt --all -- --check
-echo "== links in README.md, docs/ and research/; the README's results table against docs/results"
+step "links in README.md, docs/ and research/; the README's results table against docs/results"
 .venv/bin/python scripts/check_links.py
 .venv/bin/python scripts/results_table.py --straight docs/results/paper_straight.json \
   --curly docs/results/paper_curly.json --check README.md
-echo "== cargo doc (no warnings)"
+step "cargo doc (no warnings)"
 RUSTDOCFLAGS="-D warnings" cargo doc --quiet --workspace --no-deps
-echo "== cargo clippy (all targets, -D warnings)"
+step "cargo clippy (all targets, -D warnings)"
 cargo clippy --quiet --workspace --all-targets -- -D warnings
-echo "== cargo test (release profile; the Python module is tested from Python)"
+step "cargo test (release profile; the Python module is tested from Python)"
 cargo test --release --workspace --exclude hairrecon-python
-echo "== pytest tests/python"
+step "pytest tests/python"
 export HAIRRECON_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/release/hairrecon"
 export HAIRRECON_WHEEL="$(ls "$(pwd)"/target/wheels-hairrecon/hairrecon-*.whl | head -n 1)"
 .venv/bin/python -m pytest -q tests/python
-echo "== pytest tests/python/test_addon.py with Blender 4.2 (bpy 4.2, the oldest Blender the extension supports)"
+step "pytest tests/python/test_addon.py with Blender 4.2 (bpy 4.2, the oldest Blender the extension supports)"
 HAIRRECON_TEST_PYTHON="$(pwd)/.venv-blender42/bin/python" .venv/bin/python -m pytest -q tests/python/test_addon.py
 echo "== all tests passed in $(( $(date +%s) - start )) s"

@@ -10,11 +10,14 @@ It needs:
 - hair from ``hairrecon synth-hair --style straight`` (2,000 strands, seed 0).
 
 Set ``HAIRRECON_TEST_CAPTURE`` to an existing capture folder to skip the render (for development).
+Set ``HAIRRECON_TEST_CAPTURE_CACHE`` to a folder to render the capture there once and reuse it in later
+pytest runs (``scripts/test.sh`` runs pytest twice, with bpy 5.0 and 4.2, on one render).
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -61,12 +64,21 @@ def test_capture(tmp_path_factory) -> Path:
     env = os.environ.get("HAIRRECON_TEST_CAPTURE")
     if env:
         return Path(env)
+    cache = os.environ.get("HAIRRECON_TEST_CAPTURE_CACHE")
+    if cache and (Path(cache) / "capture" / "capture.json").is_file():
+        return Path(cache) / "capture"
     tmp = tmp_path_factory.mktemp("synthetic")
     exe = hairrecon_bin()
     head, scalp = _head()
     hair = _hair(exe, tmp, 2000)
-    cap = tmp / "capture"
+    cap = Path(cache) / "capture.partial" if cache else tmp / "capture"
+    if cache:
+        shutil.rmtree(cap, ignore_errors=True)
     cmd = [sys.executable, str(SCRIPTS / "render_synthetic.py"), str(hair), str(head), str(cap)]
     cmd += ["--preset", "test", "--hairrecon-bin", str(exe), "--scalp", str(scalp)]
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    if cache:
+        # a whole capture or none: render beside, then rename into place
+        os.replace(cap, Path(cache) / "capture")
+        return Path(cache) / "capture"
     return cap

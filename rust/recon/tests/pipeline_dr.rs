@@ -19,9 +19,9 @@ use hairrecon_recon::dr::DrOptions;
 use hairrecon_recon::progress::{NoProgress, Progress};
 use hairrecon_recon::{reconstruct, Plan, ReconError, ReconstructConfig};
 
-fn capture(name: &str) -> Capture {
+fn capture(name: &str, n_strands: usize, size: u32) -> Capture {
     let dir = std::env::temp_dir().join(format!("hairrecon-dr-{name}-{}", std::process::id()));
-    common::write_capture_with(&dir, 1500, 256, 7, true);
+    common::write_capture_with(&dir, n_strands, size, 7, true);
     Capture::load(&dir).unwrap()
 }
 
@@ -44,7 +44,7 @@ fn options() -> ReconstructConfig {
 
 #[test]
 fn dr_output_is_simulation_ready_and_better_than_init() {
-    let cap = capture("full");
+    let cap = capture("full", 1500, 256);
     let out_dir = cap.dir.join("out");
     let out = reconstruct(&cap, &out_dir, &options(), Plan::default(), &NoProgress).unwrap();
     let m = &serde_json::to_value(&out.report.scores).unwrap();
@@ -140,7 +140,8 @@ impl Progress for CancelInDr {
 
 #[test]
 fn a_run_cancelled_during_dr_writes_no_strands_and_resumes_from_its_init() {
-    let cap = capture("cancel");
+    // A small capture and a short DR: this test is about files, not quality.
+    let cap = capture("cancel", 600, 128);
     let out_dir = cap.dir.join("out");
     // A previous run's strands in the folder must not survive as if they were this run's.
     std::fs::create_dir_all(&out_dir).unwrap();
@@ -149,6 +150,7 @@ fn a_run_cancelled_during_dr_writes_no_strands_and_resumes_from_its_init() {
     let mut opts = options();
     opts.guides = 100;
     opts.children = 500;
+    (opts.dr_options.iterations_guides, opts.dr_options.iterations_children) = (8, 4);
     let progress = CancelInDr { steps: 3, flag: AtomicBool::new(false) };
     let r = reconstruct(&cap, &out_dir, &opts, Plan::default(), &progress);
     assert!(matches!(r, Err(ReconError::Cancelled(_))), "{r:?}");

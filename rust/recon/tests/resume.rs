@@ -10,7 +10,7 @@ use hairrecon_recon::{reconstruct, Plan, ReconError, ReconstructConfig, Stage};
 
 fn capture(name: &str) -> Capture {
     let dir = std::env::temp_dir().join(format!("hairrecon-resume-{name}-{}", std::process::id()));
-    common::write_capture(&dir, 1500, 256, 7);
+    common::write_capture(&dir, 600, 128, 7);
     Capture::load(&dir).unwrap()
 }
 
@@ -18,7 +18,7 @@ fn capture(name: &str) -> Capture {
 fn a_resumed_or_replayed_run_gives_the_same_bytes_as_a_whole_run() {
     let cap = capture("resume");
     let mvs = hairrecon_recon::points3d::LineMvsParams { stride: 2, ..Default::default() };
-    let mut cfg = ReconstructConfig { guides: 200, children: 1500, mvs, seed: 3, ..Default::default() };
+    let mut cfg = ReconstructConfig { guides: 100, children: 600, mvs, seed: 3, ..Default::default() };
     (cfg.dr_options.iterations_guides, cfg.dr_options.iterations_children) = (6, 3);
     let run = |dir: &str, from: Stage, stop_after: Option<Stage>, cfg: &ReconstructConfig| {
         reconstruct(&cap, &cap.dir.join(dir), cfg, Plan { from, stop_after }, &NoProgress)
