@@ -1,13 +1,21 @@
 //! Capture folders: hairrecon's input format.
 //!
 //! A capture is a folder with a `capture.json` that lists calibrated views and the meshes of the
-//! scene. Paths in the JSON are relative to the folder. Units are metres; cameras follow the OpenCV
-//! convention (`x_img = K (R X + t)`, pixel centres at integers).
+//! scene. Paths in the JSON are relative to the folder. Cameras follow the OpenCV convention
+//! (`x_img = K (R X + t)`, pixel centres at integers).
+//!
+//! Frame and units are data. `units` is `"metres"` (also `"centimetres"`, `"millimetres"`,
+//! `"inches"`, `"feet"`) or `"unknown"` (structure from motion without a scale bar, such as
+//! COLMAP's). `frame` is `"canonical"` (the default: Z up, the face toward −Y, as the renderer and
+//! the Blender add-on write) or `"imported"` (whatever frame a photogrammetry tool chose; see
+//! [`Frame`]). The reconstruction runs in the canonical frame in metres
+//! ([`Capture::is_canonical`]).
 //!
 //! ```json
 //! {
 //!   "version": 1,
 //!   "units": "metres",
+//!   "frame": "canonical",
 //!   "convention": "opencv",
 //!   "views": [
 //!     { "name": "view_000", "image": "images/view_000.png", "mask": "masks/view_000.png",
@@ -52,8 +60,13 @@ pub enum CaptureError {
     Json { path: PathBuf, source: serde_json::Error },
     #[error("{path}: unsupported capture version {found} (this hairrecon reads version {CAPTURE_VERSION})")]
     Version { path: PathBuf, found: u32 },
-    #[error("{path}: units must be \"metres\" (found {found:?}); convert the capture to metres")]
+    #[error(
+        "{path}: unknown units {found:?}; give \"metres\", \"centimetres\", \"millimetres\", \"inches\", \"feet\" \
+         or \"unknown\" (an arbitrary scale)"
+    )]
     Units { path: PathBuf, found: String },
+    #[error("{path}: unknown frame {found:?}; give \"canonical\" (Z up, face toward -Y) or \"imported\"")]
+    Frame { path: PathBuf, found: String },
     #[error("{path}: convention must be \"opencv\" (found {found:?})")]
     Convention { path: PathBuf, found: String },
     #[error("{path}: the capture has no views; list at least one calibrated view")]
@@ -107,7 +120,11 @@ pub struct ViewSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CaptureSpec {
     pub version: u32,
+    /// See [`Units::parse`].
     pub units: String,
+    /// `"canonical"` or `"imported"` ([`Frame`]); absent means canonical.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<String>,
     pub convention: String,
     pub views: Vec<ViewSpec>,
     pub raw_mesh: PathBuf,
@@ -117,6 +134,71 @@ pub struct CaptureSpec {
     pub scalp_mesh: Option<PathBuf>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gt_strands: Option<PathBuf>,
+}
+
+/// The length unit of a capture's world frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Units {
+    /// Metres.
+    Metres,
+    /// Another named unit and its length in metres.
+    Named { name: String, metres: f64 },
+    /// An arbitrary scale (structure from motion without a scale bar).
+    Unknown,
+}
+
+impl Units {
+    /// Reads capture.json's `units`: `metres` (`meters`, `m`), `centimetres` (`cm`), `millimetres`
+    /// (`mm`), `inches` (`in`), `feet` (`ft`), or `unknown`; British and American spellings alike.
+    pub fn parse(s: &str) -> Option<Self> {
+        let named = |name: &str, metres: f64| Some(Units::Named { name: name.into(), metres });
+        match s.to_ascii_lowercase().as_str() {
+            "metres" | "meters" | "m" => Some(Units::Metres),
+            "centimetres" | "centimeters" | "cm" => named("centimetres", 0.01),
+            "millimetres" | "millimeters" | "mm" => named("millimetres", 0.001),
+            "inches" | "in" => named("inches", 0.0254),
+            "feet" | "ft" => named("feet", 0.3048),
+            "unknown" => Some(Units::Unknown),
+            _ => None,
+        }
+    }
+
+    /// The name capture.json stores.
+    pub fn name(&self) -> &str {
+        match self {
+            Units::Metres => "metres",
+            Units::Named { name, .. } => name,
+            Units::Unknown => "unknown",
+        }
+    }
+}
+
+/// The world frame a capture is given in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Frame {
+    /// Z up, the face toward −Y (the synthetic renderer's and the Blender add-on's frame).
+    Canonical,
+    /// As a photogrammetry tool chose it: any rotation, offset and (with unknown units) scale.
+    Imported,
+}
+
+impl Frame {
+    /// Reads capture.json's `frame` (absent: canonical).
+    pub fn parse(s: Option<&str>) -> Option<Self> {
+        match s.map(str::to_ascii_lowercase).as_deref() {
+            None | Some("canonical") => Some(Frame::Canonical),
+            Some("imported") => Some(Frame::Imported),
+            _ => None,
+        }
+    }
+
+    /// The name capture.json stores.
+    pub fn name(self) -> &'static str {
+        match self {
+            Frame::Canonical => "canonical",
+            Frame::Imported => "imported",
+        }
+    }
 }
 
 /// A validated view: its camera and the absolute paths of its files.
@@ -134,6 +216,8 @@ pub struct View {
 #[derive(Debug, Clone)]
 pub struct Capture {
     pub dir: PathBuf,
+    pub units: Units,
+    pub frame: Frame,
     pub views: Vec<View>,
     pub raw_mesh: PathBuf,
     pub head_mesh: Option<PathBuf>,
@@ -156,6 +240,8 @@ impl Capture {
     /// Validates a parsed spec whose relative paths are under `dir`; `json` names the file in errors.
     pub fn from_spec(spec: CaptureSpec, dir: &Path, json: &Path) -> Result<Self, CaptureError> {
         let cameras = spec.validate(json)?;
+        let units = Units::parse(&spec.units).expect("validated");
+        let frame = Frame::parse(spec.frame.as_deref()).expect("validated");
         let mut views = Vec::with_capacity(spec.views.len());
         for (v, camera) in spec.views.into_iter().zip(cameras) {
             let image = dir.join(&v.image);
@@ -187,12 +273,22 @@ impl Capture {
         };
         Ok(Self {
             dir: dir.to_path_buf(),
+            units,
+            frame,
             views,
             raw_mesh,
             head_mesh: opt("head_mesh", spec.head_mesh)?,
             scalp_mesh: opt("scalp_mesh", spec.scalp_mesh)?,
             gt_strands: opt("gt_strands", spec.gt_strands)?,
         })
+    }
+}
+
+impl Capture {
+    /// True when the capture is in the canonical frame and in metres, the frame the reconstruction
+    /// works in. An imported capture needs the similarity to it first (head fitting).
+    pub fn is_canonical(&self) -> bool {
+        self.frame == Frame::Canonical && self.units == Units::Metres
     }
 }
 
@@ -205,8 +301,11 @@ impl CaptureSpec {
         if self.version != CAPTURE_VERSION {
             return Err(CaptureError::Version { path: json.into(), found: self.version });
         }
-        if self.units != "metres" && self.units != "meters" {
+        if Units::parse(&self.units).is_none() {
             return Err(CaptureError::Units { path: json.into(), found: self.units.clone() });
+        }
+        if Frame::parse(self.frame.as_deref()).is_none() {
+            return Err(CaptureError::Frame { path: json.into(), found: self.frame.clone().unwrap_or_default() });
         }
         if !self.convention.eq_ignore_ascii_case("opencv") {
             return Err(CaptureError::Convention { path: json.into(), found: self.convention.clone() });
@@ -389,6 +488,7 @@ mod tests {
         CaptureSpec {
             version: 1,
             units: "metres".into(),
+            frame: None,
             convention: "opencv".into(),
             views: vec![ViewSpec {
                 name: "v0".into(),
@@ -450,8 +550,18 @@ mod tests {
         assert!(matches!(load(&dir, &s), Err(CaptureError::Camera { .. })));
 
         let mut s = spec();
-        s.units = "millimetres".into();
+        s.units = "cubits".into();
         assert!(matches!(load(&dir, &s), Err(CaptureError::Units { .. })));
+        s.units = "millimetres".into();
+        s.frame = Some("imported".into());
+        let c = load(&dir, &s).unwrap();
+        assert_eq!(
+            (c.units.clone(), c.frame),
+            (Units::Named { name: "millimetres".into(), metres: 0.001 }, Frame::Imported)
+        );
+        assert!(!c.is_canonical());
+        s.frame = Some("y-up".into());
+        assert!(matches!(load(&dir, &s), Err(CaptureError::Frame { .. })));
 
         // NaN cannot be written as JSON; a null where a number belongs is a parse error.
         std::fs::write(dir.join("capture.json"), "{\"version\": 1, \"views\": [}").unwrap();

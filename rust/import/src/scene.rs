@@ -7,8 +7,6 @@
 
 use std::path::PathBuf;
 
-use serde::{Deserialize, Serialize};
-
 /// Pinhole intrinsics in pixels of the view's original photo, pixel centres at integers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Intrinsics {
@@ -57,17 +55,8 @@ impl Distortion {
     }
 }
 
-/// The unit of a capture's world frame, as the capture records it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Units {
-    /// Metres.
-    Metres,
-    /// Another named unit with its length in metres (e.g. `"centimetres"`, 0.01).
-    Named { name: String, metres: f64 },
-    /// An arbitrary scale (structure from motion without a scale bar, such as COLMAP's).
-    Unknown,
-}
+/// The unit of the source's world frame (the capture format's own type).
+pub use hairrecon_core::capture::Units;
 
 /// One calibrated view as a tool exported it.
 #[derive(Debug, Clone, PartialEq)]

@@ -50,6 +50,14 @@ pub enum ReconError {
     /// `--from` lies after `--stop-after`.
     #[error("--from {from} comes after --stop-after {stop}: nothing to run")]
     EmptyPlan { from: Stage, stop: Stage },
+    /// The capture is not in the canonical frame in metres (an imported capture), and hairrecon
+    /// cannot yet place the head in it.
+    #[error(
+        "the capture {dir} is in an imported frame (frame {frame:?}, units {units:?}); the reconstruction works in \
+         metres with Z up and the face toward -Y, and finding that frame on an imported capture (head fitting) is \
+         not available yet. Reconstruct from a Blender scene set up in that frame, or a capture written in it"
+    )]
+    NotCanonical { dir: PathBuf, frame: String, units: String },
     /// The capture has no scalp mesh.
     #[error("the capture {dir} has no scalp mesh; add \"scalp_mesh\" to its capture.json")]
     NoScalp { dir: PathBuf },

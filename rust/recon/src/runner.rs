@@ -53,6 +53,13 @@ pub fn reconstruct(
     progress: &dyn Progress,
 ) -> Result<ReconstructOutput, ReconError> {
     cfg.validate()?;
+    if !capture.is_canonical() {
+        return Err(ReconError::NotCanonical {
+            dir: capture.dir.clone(),
+            frame: capture.frame.name().into(),
+            units: capture.units.name().into(),
+        });
+    }
     let stop = plan.stop_after.unwrap_or(Stage::Dr);
     let last = if cfg.dr { stop } else { stop.min(Stage::Init) };
     let from = plan.from;

@@ -1,6 +1,7 @@
 //! A run resumed from a saved stage (`--from`) or replayed from its `config.json` gives the same
 //! bytes as one whole run, on the synthetic capture of `common/mod.rs`; resuming without the
-//! earlier stages' files names the stage to run.
+//! earlier stages' files names the stage to run; an imported capture (not yet in the canonical frame) is
+//! refused.
 
 mod common;
 
@@ -68,5 +69,26 @@ fn resuming_without_the_earlier_stages_names_the_stage_to_run() {
     let plan = Plan { from: Stage::Dr, stop_after: Some(Stage::Init) };
     let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), plan, &NoProgress).unwrap_err();
     assert!(matches!(e, ReconError::EmptyPlan { .. }), "{e}");
+    let _ = std::fs::remove_dir_all(&cap.dir);
+}
+
+#[test]
+fn an_imported_capture_is_refused_before_anything_is_written() {
+    let mut cap = capture("imported");
+    cap.frame = hairrecon_core::capture::Frame::Imported;
+    cap.units = hairrecon_core::capture::Units::Unknown;
+    let out_dir = cap.dir.join("out");
+    let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), Plan::default(), &NoProgress).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, ReconError::NotCanonical { .. }), "{msg}");
+    assert!(msg.contains("\"unknown\"") && msg.contains("head fitting"), "{msg}");
+    assert!(!out_dir.exists(), "a refused run created {}", out_dir.display());
+    // Metres in the canonical frame run; centimetres do not yet.
+    cap.frame = hairrecon_core::capture::Frame::Canonical;
+    cap.units = hairrecon_core::capture::Units::parse("cm").unwrap();
+    assert!(matches!(
+        reconstruct(&cap, &out_dir, &ReconstructConfig::default(), Plan::default(), &NoProgress),
+        Err(ReconError::NotCanonical { .. })
+    ));
     let _ = std::fs::remove_dir_all(&cap.dir);
 }

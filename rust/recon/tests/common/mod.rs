@@ -307,6 +307,7 @@ pub fn write_capture_with(dir: &Path, n_strands: usize, size: u32, seed: u64, co
     let spec = CaptureSpec {
         version: 1,
         units: "metres".into(),
+        frame: None,
         convention: "opencv".into(),
         views,
         raw_mesh: "raw_mesh.ply".into(),
