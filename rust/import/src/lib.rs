@@ -7,6 +7,7 @@
 //! working height; `capture_writer` writes the capture folder.
 
 pub mod distortion;
+pub mod photo;
 pub mod scene;
 
 pub use scene::{Distortion, Intrinsics, Scene, SceneView, Units};
