@@ -251,10 +251,28 @@ impl Photo {
     }
 }
 
-/// Runs a third-party decoder, turning a panic into an error message.
-fn guarded<T>(f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+/// How decoding failed: the file is broken, or it is valid but not something this reads.
+enum DecodeFailure {
+    Broken(String),
+    Unsupported(String),
+}
+
+impl From<image::ImageError> for DecodeFailure {
+    fn from(e: image::ImageError) -> Self {
+        match e {
+            image::ImageError::Limits(l) => Self::Unsupported(format!("too large to decode ({l})")),
+            image::ImageError::Unsupported(u) => {
+                Self::Unsupported(format!("a variant the decoder does not support ({u})"))
+            }
+            other => Self::Broken(other.to_string()),
+        }
+    }
+}
+
+/// Runs a third-party decoder, turning a panic into an error.
+fn guarded<T>(f: impl FnOnce() -> Result<T, DecodeFailure>) -> Result<T, DecodeFailure> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f))
-        .unwrap_or_else(|_| Err("the decoder failed on malformed data".to_string()))
+        .unwrap_or_else(|_| Err(DecodeFailure::Broken("the decoder failed on malformed data".to_string())))
 }
 
 /// Loads a JPEG, PNG or TIFF photo (the type from the file's first bytes, not its name) with its
@@ -280,13 +298,15 @@ pub fn load_photo(path: impl AsRef<Path>) -> Result<Photo, PhotoError> {
         jpeg_structure::check_complete(&bytes).map_err(unreadable)?;
     }
     let (image, orientation) = guarded(|| {
-        let mut decoder =
-            ImageReader::with_format(Cursor::new(&bytes[..]), format).into_decoder().map_err(|e| e.to_string())?;
-        let orientation = decoder.orientation().map_err(|e| e.to_string())?;
-        let image = DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
+        let mut decoder = ImageReader::with_format(Cursor::new(&bytes[..]), format).into_decoder()?;
+        let orientation = decoder.orientation()?;
+        let image = DynamicImage::from_decoder(decoder)?;
         Ok((image, orientation))
     })
-    .map_err(unreadable)?;
+    .map_err(|e| match e {
+        DecodeFailure::Broken(msg) => unreadable(msg),
+        DecodeFailure::Unsupported(what) => unsupported(what),
+    })?;
     drop(bytes);
     let pixels = match image {
         DynamicImage::ImageRgb8(i) => PhotoPixels::Rgb8(i),

@@ -355,6 +355,12 @@ fn broken_photos_are_errors_that_name_the_file() {
     let err = load_photo(&path).unwrap_err();
     assert!(matches!(err, PhotoError::Unsupported { .. }) && err.to_string().contains("notes.jpg"), "{err}");
 
+    let float = image::Rgb32FImage::from_pixel(3, 2, image::Rgb([0.25, 0.5, 2.0]));
+    let path = dir.join("float.tif");
+    image::DynamicImage::ImageRgb32F(float).save(&path).unwrap();
+    let err = load_photo(&path).unwrap_err();
+    assert!(matches!(err, PhotoError::Unsupported { .. }) && err.to_string().contains("float.tif"), "{err}");
+
     let err = load_photo(dir.join("absent.jpg")).unwrap_err();
     assert!(matches!(err, PhotoError::Missing { .. }) && err.to_string().contains("absent.jpg"), "{err}");
     std::fs::remove_dir_all(dir).ok();
