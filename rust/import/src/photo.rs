@@ -277,7 +277,7 @@ fn guarded<T>(f: impl FnOnce() -> Result<T, DecodeFailure>) -> Result<T, DecodeF
 
 /// Loads a JPEG, PNG or TIFF photo (the type from the file's first bytes, not its name) with its
 /// EXIF orientation; the module docs give the pixel format. A JPEG is first checked to be complete
-/// ([`jpeg_structure`]), since the decoder accepts truncated ones.
+/// (its markers are walked from start to end of image), since the decoder accepts truncated ones.
 pub fn load_photo(path: impl AsRef<Path>) -> Result<Photo, PhotoError> {
     let path = path.as_ref();
     let bytes = std::fs::read(path).map_err(|source| match source.kind() {
