@@ -6,6 +6,8 @@
 //! file's own frame and units); `photo` loads each view's photo, undistorts it and scales it to the
 //! working height; `capture_writer` writes the capture folder.
 
+pub mod distortion;
+pub mod photo;
 pub mod scene;
 
 pub use scene::{Distortion, Intrinsics, Scene, SceneView, Units};
