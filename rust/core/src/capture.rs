@@ -21,7 +21,8 @@
 //!     { "name": "view_000", "image": "images/view_000.png", "mask": "masks/view_000.png",
 //!       "width": 341, "height": 512,
 //!       "K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "R": [[...], [...], [...]], "t": [tx, ty, tz],
-//!       "gt_orientation": "gt/orientation/view_000.exr", "gt_depth": "gt/depth/view_000.exr" }
+//!       "gt_orientation": "gt/orientation/view_000.exr", "gt_depth": "gt/depth/view_000.exr",
+//!       "original": "/photos/IMG_0001.JPG" }
 //!   ],
 //!   "raw_mesh": "raw_mesh.ply",
 //!   "head_mesh": "head.ply",
@@ -30,7 +31,8 @@
 //! }
 //! ```
 //!
-//! `mask`, `head_mesh`, `scalp_mesh`, `gt_*` are optional. [`CaptureSpec`] is this schema, the one
+//! `mask`, `head_mesh`, `scalp_mesh`, `gt_*` and `original` (the photo an importer made `image`
+//! from) are optional. [`CaptureSpec`] is this schema, the one
 //! definition of it: [`Capture::load`] reads it and [`CaptureSpec::write`] writes it (the renderer and
 //! the Blender add-on write theirs through it, from Python `hairrecon.write_capture`).
 //!
@@ -114,6 +116,9 @@ pub struct ViewSpec {
     pub gt_orientation: Option<PathBuf>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gt_depth: Option<PathBuf>,
+    /// The photo `image` was made from, as an importer found it (for the record; never read).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub original: Option<PathBuf>,
 }
 
 /// capture.json as written on disk.
@@ -501,6 +506,7 @@ mod tests {
                 t: [0.0, 0.0, 1.0],
                 gt_orientation: None,
                 gt_depth: None,
+                original: None,
             }],
             raw_mesh: "raw_mesh.ply".into(),
             head_mesh: None,

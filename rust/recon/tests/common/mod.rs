@@ -302,6 +302,7 @@ pub fn write_capture_with(dir: &Path, n_strands: usize, size: u32, seed: u64, co
             t: cam.t().to_array(),
             gt_orientation: Some(format!("gt/orientation/{name}.exr").into()),
             gt_depth: None,
+            original: None,
         });
     }
     let spec = CaptureSpec {
