@@ -40,6 +40,8 @@ pub enum ImportError {
     UnknownCamera { path: PathBuf, image: String, camera_id: String },
     #[error("{path}: invalid camera {camera_id}: {msg}")]
     BadCamera { path: PathBuf, camera_id: String, msg: String },
+    #[error("{path}: {msg}")]
+    Invalid { path: PathBuf, msg: String },
     #[error("{path}: the file has no calibrated views; align the photos in the tool and export the cameras again")]
     NoViews { path: PathBuf },
     #[error("cannot write {path}: view {view:?} {msg}")]

@@ -13,10 +13,14 @@
 pub mod colmap;
 pub mod error;
 mod files;
+pub mod metashape;
+pub mod nerf;
 pub mod pose;
 pub mod scene;
 
 pub use colmap::read_colmap;
 pub use error::ImportError;
+pub use metashape::read_metashape;
+pub use nerf::read_nerf;
 
 pub use scene::{Distortion, Intrinsics, Scene, SceneView, Units};
