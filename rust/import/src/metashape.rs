@@ -232,7 +232,7 @@ impl<'a, 'input> Reader<'a, 'input> {
                 - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
                 + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
             let scale = det.cbrt();
-            if !(scale > 0.0) || m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0 {
+            if scale.is_nan() || scale <= 0.0 || m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0 {
                 return Err(bad("the 4x4 matrix is not a similarity (positive scale, last row 0 0 0 1)".into()));
             }
             let rotation = pose::nearest_rotation(&a.map(|r| r.map(|v| v / scale))).map_err(bad)?;

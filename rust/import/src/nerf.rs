@@ -121,9 +121,10 @@ fn read_frame(
         match num(key)? {
             Some(v) if v >= 1.0 && v.fract() == 0.0 && v <= f64::from(u32::MAX) => Ok(v as u32),
             Some(v) => Err(invalid(format!("\"{key}\" = {v} is not a positive whole number of pixels"))),
-            None => Err(invalid(format!(
+            None => Err(invalid(
                 "no image size: the importer needs \"w\" and \"h\" (at the top level or in the frame); add them"
-            ))),
+                    .to_string(),
+            )),
         }
     };
     let (w, h) = (size("w")?, size("h")?);
