@@ -44,7 +44,7 @@ pub enum ImportError {
     Invalid { path: PathBuf, msg: String },
     #[error("{path}: the file has no calibrated views; align the photos in the tool and export the cameras again")]
     NoViews { path: PathBuf },
-    #[error("cannot write {path}: view {view:?} {msg}")]
+    #[error("cannot write {path}: view {view:?} {msg}; write it in a format that holds it, or undistort it first")]
     Unwritable { path: PathBuf, view: String, msg: String },
 }
 

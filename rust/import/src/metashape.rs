@@ -45,6 +45,8 @@
 //!   is named after the label's file name and its image path is the label (Metashape labels are often
 //!   photo file names, sometimes without the extension; the importer looks the photo up).
 //! - Sensors must be of type `frame`; fisheye, spherical and other sensors are refused.
+//! - Multi-camera rigs are not supported: slave cameras (a `master_id` other than their own id and
+//!   no `<transform>`) are skipped with a warning.
 
 use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
@@ -161,10 +163,15 @@ impl<'a, 'input> Reader<'a, 'input> {
         let mut views = Vec::new();
         let mut names = HashSet::new();
         let mut skipped = Vec::new();
+        let mut rig = Vec::new();
         for cam in cameras.descendants().filter(|c| c.has_tag_name("camera")) {
             let label = cam.attribute("label").unwrap_or("").to_string();
             let Some(transform) = child(cam, "transform") else {
-                skipped.push(label);
+                if cam.attribute("master_id").is_some_and(|m| Some(m) != cam.attribute("id")) {
+                    rig.push(label);
+                } else {
+                    skipped.push(label);
+                }
                 continue;
             };
             if label.is_empty() {
@@ -210,10 +217,21 @@ impl<'a, 'input> Reader<'a, 'input> {
             }
             views.push(SceneView { name, image: PathBuf::from(&label), width, height, intrinsics, distortion, r, t });
         }
+        let list = |names: &[String]| {
+            let more = if names.len() > 10 { ", ..." } else { "" };
+            let shown: Vec<String> = names.iter().take(10).map(|s| format!("{s:?}")).collect();
+            format!("{}{more}", shown.join(", "))
+        };
         if !skipped.is_empty() {
-            let list = skipped.iter().take(10).map(|s| format!("{s:?}")).collect::<Vec<_>>().join(", ");
-            let more = if skipped.len() > 10 { ", ..." } else { "" };
-            warnings.push(format!("{} camera(s) were not aligned and are skipped: {list}{more}", skipped.len()));
+            warnings.push(format!("{} camera(s) were not aligned and are skipped: {}", skipped.len(), list(&skipped)));
+        }
+        if !rig.is_empty() {
+            warnings.push(format!(
+                "{} camera(s) are slaves of a multi-camera rig (their pose is relative to a master camera), which \
+                 hairrecon does not import; they are skipped: {}",
+                rig.len(),
+                list(&rig)
+            ));
         }
         if views.is_empty() {
             return Err(ImportError::NoViews { path: self.path.to_path_buf() });

@@ -168,6 +168,7 @@ const METASHAPE: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
         </camera>
       </group>
       <camera id="1" sensor_id="0" component_id="0" label="IMG_0002.JPG"/>
+      <camera id="5" sensor_id="0" component_id="0" master_id="0" label="IMG_0001_right.JPG"/>
       CAMERA3
     </cameras>
     <transform>
@@ -187,8 +188,9 @@ fn metashape_conventions() {
     write(&path, &METASHAPE.replace("CAMERA3", ""));
     let scene = read_metashape(&path).unwrap();
     assert_eq!(scene.views.len(), 1);
-    assert_eq!(scene.warnings.len(), 2, "{:?}", scene.warnings);
+    assert_eq!(scene.warnings.len(), 3, "{:?}", scene.warnings);
     assert!(scene.warnings.iter().any(|w| w.contains("IMG_0002.JPG") && w.contains("not aligned")));
+    assert!(scene.warnings.iter().any(|w| w.contains("IMG_0001_right.JPG") && w.contains("rig")));
     let v = &scene.views[0];
     assert_eq!(v.name, "IMG_0001.JPG");
     let k = &v.intrinsics;
