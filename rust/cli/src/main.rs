@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 mod cmd_fuse;
+mod cmd_import;
 mod cmd_io;
 mod cmd_reconstruct;
 mod cmd_synth;
@@ -40,6 +41,9 @@ enum Command {
     ToyLetters(cmd_toy::ToyLettersArgs),
     /// Reconstruct hair strands from a capture folder.
     Reconstruct(cmd_reconstruct::ReconstructArgs),
+    /// Make a capture folder from a photogrammetry tool's calibration, photos and raw mesh.
+    #[command(subcommand)]
+    Import(cmd_import::ImportCommand),
 }
 
 fn main() {
@@ -53,6 +57,7 @@ fn main() {
         Command::ToyAa(a) => cmd_toy::run_aa(a),
         Command::ToyLetters(a) => cmd_toy::run_letters(a),
         Command::Reconstruct(a) => cmd_reconstruct::run(a),
+        Command::Import(c) => cmd_import::run(c),
     };
     if let Err(e) = result {
         eprintln!("hairrecon: error: {e}");

@@ -83,4 +83,25 @@ pub struct Scene {
     /// Sparse 3D points when the source has them (COLMAP's points3D), in the same frame.
     pub points: Vec<[f64; 3]>,
     pub units: Units,
+    /// What the reader skipped or could not be sure of (e.g. Metashape cameras that were not
+    /// aligned), one sentence each, for the importer to show.
+    pub warnings: Vec<String>,
+}
+
+impl SceneView {
+    /// The pixel where the world point `x` appears in this view, with the lens distortion applied
+    /// (pixel centres at integers); `None` when the point is not in front of the camera (`Z ≤ 0`).
+    ///
+    /// `X_cam = R x + t`, `(x, y) = (X/Z, Y/Z)` distorted as [`Distortion`] says, then
+    /// `u = fx x' + skew y' + cx`, `v = fy y' + cy`.
+    pub fn project(&self, x: [f64; 3]) -> Option<[f64; 2]> {
+        let r = &self.r;
+        let c = [0, 1, 2].map(|i| r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2] + self.t[i]);
+        if c[2] <= 0.0 {
+            return None;
+        }
+        let (xd, yd) = self.distortion.distort(c[0] / c[2], c[1] / c[2]);
+        let k = &self.intrinsics;
+        Some([k.fx * xd + k.skew * yd + k.cx, k.fy * yd + k.cy])
+    }
 }
