@@ -34,6 +34,10 @@ pub struct ReconstructArgs {
     /// Stop after this stage: orient2d, orient3d, partings, direction, init (before DR) or dr.
     #[arg(long, value_name = "STAGE")]
     stop_after: Option<String>,
+    /// Accept a capture.json whose paths are absolute or leave the capture folder with `..`
+    /// (by default every path must stay inside the folder).
+    #[arg(long)]
+    allow_outside_paths: bool,
     /// Start from this configuration (a run's config.json, or `--print-config`'s output); the
     /// options below override it.
     #[arg(long, value_name = "FILE")]
@@ -259,7 +263,11 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
         println!("{}", serde_json::to_string_pretty(&ConfigFile::new(cfg))?);
         return Ok(());
     }
-    let capture = Capture::load(&a.capture)?;
+    let capture = if a.allow_outside_paths {
+        Capture::load_allowing_outside_paths(&a.capture)?
+    } else {
+        Capture::load(&a.capture)?
+    };
     let log = (!std::io::stderr().is_terminal()).then(|| Mutex::new((String::new(), Instant::now())));
     let bars = Bars { current: Mutex::new(None), log, start: Instant::now() };
     let out = reconstruct(&capture, &a.out, &cfg, plan, &bars);

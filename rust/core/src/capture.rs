@@ -92,6 +92,12 @@ pub enum CaptureError {
     BadViewName { path: PathBuf, view: String },
     #[error("{path}: {what} is empty; give the file's path relative to the capture folder")]
     EmptyPath { path: PathBuf, what: String },
+    #[error(
+        "{path}: the {what} path {file} leads outside the capture folder; paths must be relative to the folder \
+         and stay inside it: copy or link the file into the folder (or allow outside paths explicitly: \
+         `hairrecon reconstruct --allow-outside-paths`)"
+    )]
+    OutsidePath { path: PathBuf, what: String, file: PathBuf },
     #[error("{path}: {msg}")]
     Spec { path: PathBuf, msg: String },
     #[error("cannot write the capture: {source}")]
@@ -231,14 +237,26 @@ pub struct Capture {
 }
 
 impl Capture {
-    /// Loads and validates `dir/capture.json` (or the given JSON file itself).
+    /// Loads and validates `dir/capture.json` (or the given JSON file itself). Every path it names
+    /// must stay inside the capture folder ([`Capture::load_allowing_outside_paths`] lifts that).
     pub fn load(path: impl AsRef<Path>) -> Result<Self, CaptureError> {
-        let path = path.as_ref();
+        Self::load_with(path.as_ref(), false)
+    }
+
+    /// [`Capture::load`], accepting absolute paths and paths that leave the folder with `..`.
+    pub fn load_allowing_outside_paths(path: impl AsRef<Path>) -> Result<Self, CaptureError> {
+        Self::load_with(path.as_ref(), true)
+    }
+
+    fn load_with(path: &Path, outside_paths: bool) -> Result<Self, CaptureError> {
         let json = if path.is_dir() { path.join("capture.json") } else { path.to_path_buf() };
         let dir = json.parent().map(Path::to_path_buf).unwrap_or_default();
         let text = std::fs::read_to_string(&json).map_err(|source| CaptureError::Io { path: json.clone(), source })?;
         let spec: CaptureSpec =
             serde_json::from_str(&text).map_err(|source| CaptureError::Json { path: json.clone(), source })?;
+        if !outside_paths {
+            spec.check_paths_inside(&json)?;
+        }
         Self::from_spec(spec, &dir, &json)
     }
 
@@ -358,6 +376,49 @@ impl CaptureSpec {
             }
         }
         Ok(cameras)
+    }
+
+    /// Checks that every path the spec names (images, masks, meshes, ground truth; not `original`,
+    /// which is never read) is relative and stays inside the capture folder, by its components:
+    /// no root, no drive prefix, no `..` that climbs above the folder. `json` names the file in errors.
+    pub fn check_paths_inside(&self, json: &Path) -> Result<(), CaptureError> {
+        let check = |what: String, p: &Path| -> Result<(), CaptureError> {
+            let mut depth = 0usize;
+            for c in p.components() {
+                match c {
+                    std::path::Component::Normal(_) => depth += 1,
+                    std::path::Component::CurDir => {}
+                    std::path::Component::ParentDir if depth > 0 => depth -= 1,
+                    _ => return Err(CaptureError::OutsidePath { path: json.into(), what, file: p.into() }),
+                }
+            }
+            Ok(())
+        };
+        for v in &self.views {
+            let files = [
+                ("image", Some(&v.image)),
+                ("mask", v.mask.as_ref()),
+                ("gt_orientation", v.gt_orientation.as_ref()),
+                ("gt_depth", v.gt_depth.as_ref()),
+            ];
+            for (what, p) in files {
+                if let Some(p) = p {
+                    check(format!("view {:?}: {what}", v.name), p)?;
+                }
+            }
+        }
+        let meshes = [
+            ("raw_mesh", Some(&self.raw_mesh)),
+            ("head_mesh", self.head_mesh.as_ref()),
+            ("scalp_mesh", self.scalp_mesh.as_ref()),
+            ("gt_strands", self.gt_strands.as_ref()),
+        ];
+        for (what, p) in meshes {
+            if let Some(p) = p {
+                check(what.into(), p)?;
+            }
+        }
+        Ok(())
     }
 
     /// A spec from parsed JSON, strictly: errors name the view and the field (`views[2] "view_002":
@@ -568,6 +629,25 @@ mod tests {
         assert!(!c.is_canonical());
         s.frame = Some("y-up".into());
         assert!(matches!(load(&dir, &s), Err(CaptureError::Frame { .. })));
+
+        // Paths stay inside the folder unless allowed: `a/../b` is inside, `../x` and `/x` are not.
+        let mut s = spec();
+        s.views[0].image = "images/../images/v0.png".into();
+        load(&dir, &s).unwrap();
+        let name = format!("outside-{}.png", std::process::id());
+        let outside = dir.join("..").join(&name);
+        write_png(&outside, 4, 6);
+        for bad in [PathBuf::from("images/../..").join(&name), outside.canonicalize().unwrap()] {
+            s.views[0].image = bad.clone();
+            let e = load(&dir, &s).unwrap_err();
+            assert!(matches!(e, CaptureError::OutsidePath { .. }), "{bad:?}: {e}");
+            assert!(e.to_string().contains("\"v0\": image") && e.to_string().contains("outside"), "{e}");
+            assert!(Capture::load_allowing_outside_paths(&dir).is_ok(), "{bad:?}");
+        }
+        let mut s = spec();
+        s.raw_mesh = "../raw_mesh.ply".into();
+        assert!(matches!(load(&dir, &s), Err(CaptureError::OutsidePath { .. })));
+        let _ = std::fs::remove_file(outside);
 
         // NaN cannot be written as JSON; a null where a number belongs is a parse error.
         std::fs::write(dir.join("capture.json"), "{\"version\": 1, \"views\": [}").unwrap();
