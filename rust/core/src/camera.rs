@@ -64,6 +64,17 @@ impl Camera {
         if k[0][0] <= 0.0 || k[1][1] <= 0.0 {
             return Err(CameraError::BadIntrinsics("focal lengths fx and fy must be positive"));
         }
+        // A field of view between about 0.06° and 178° across the image's larger side; beyond,
+        // projections overflow f32 or every ray is parallel (a unit mix-up, not a lens).
+        let size = width.max(height) as f32;
+        if !(k[0][0] <= 1e3 * size && k[1][1] <= 1e3 * size && k[0][0] >= 0.01 * size && k[1][1] >= 0.01 * size) {
+            return Err(CameraError::BadIntrinsics(
+                "fx and fy must lie between 0.01 and 1000 times the image's larger side (in pixels)",
+            ));
+        }
+        if k[0][1].abs() > 1e3 * size || k[0][2].abs() > 1e3 * size || k[1][2].abs() > 1e3 * size {
+            return Err(CameraError::BadIntrinsics("skew, cx and cy must lie within 1000 image sizes"));
+        }
         // glam matrices are column-major: transpose the row-major input.
         let km = Mat3::from_cols_array_2d(&k).transpose();
         let rm = Mat3::from_cols_array_2d(&r).transpose();
@@ -250,5 +261,14 @@ mod tests {
         assert!(matches!(Camera::new(kz, id, [0.0; 3], 100, 100), Err(CameraError::BadIntrinsics(_))));
         assert!(matches!(Camera::new(k, id, [f32::NAN, 0.0, 0.0], 100, 100), Err(CameraError::NotFinite("t"))));
         assert!(matches!(Camera::new(k, id, [0.0; 3], 0, 100), Err(CameraError::BadSize { .. })));
+        // Focal lengths no lens has (a unit mix-up): rays would overflow or all be parallel.
+        for f in [1e30, 1.01e5, 0.99] {
+            let mut kf = k;
+            kf[0][0] = f;
+            assert!(matches!(Camera::new(kf, id, [0.0; 3], 100, 100), Err(CameraError::BadIntrinsics(_))), "{f}");
+        }
+        let mut kc = k;
+        kc[0][2] = 2e5;
+        assert!(matches!(Camera::new(kc, id, [0.0; 3], 100, 100), Err(CameraError::BadIntrinsics(_))));
     }
 }

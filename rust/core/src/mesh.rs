@@ -276,6 +276,9 @@ impl Bvh {
 
     /// The first hit of the ray `origin + t * dir` with `t_min < t < t_max`, if any.
     pub fn ray_cast(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
+        if !(origin.is_finite() && dir.is_finite()) || dir == Vec3::ZERO {
+            return None; // a NaN ray would pass every box test: it hits nothing
+        }
         let inv = Vec3::ONE / dir;
         let mut best: Option<RayHit> = None;
         let mut t_best = t_max;
@@ -541,6 +544,11 @@ mod tests {
     fn queries_agree_with_brute_force_on_a_sphere() {
         let m = sphere(1.0, 32, 16);
         let bvh = Bvh::new(m.clone());
+        // A NaN or zero ray hits nothing (NaN passes every box test and would visit every node).
+        assert!(bvh.ray_cast(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, 0.0, f32::INFINITY).is_some());
+        assert!(bvh.ray_cast(Vec3::new(0.0, 0.0, -3.0), Vec3::new(f32::NAN, 0.0, 1.0), 0.0, f32::INFINITY).is_none());
+        assert!(bvh.ray_cast(Vec3::NAN, Vec3::Z, 0.0, f32::INFINITY).is_none());
+        assert!(bvh.ray_cast(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, 0.0, f32::INFINITY).is_none());
         let mut s = 12345u32;
         let mut rnd = || {
             s ^= s << 13;
