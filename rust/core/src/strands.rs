@@ -18,7 +18,16 @@ pub enum StrandError {
     NotFinite { index: usize, strand: usize, value: [f32; 3] },
     #[error("resampling step must be a positive finite length in metres, got {0}")]
     BadStep(f32),
+    #[error(
+        "resampling {length:.4e} units of strand every {step} would make {points:.3e} points (at most {max} are \
+         allowed); the strands are probably not in metres (millimetres read as metres?), or the step is too small"
+    )]
+    TooManyPoints { length: f64, step: f32, points: f64, max: u64 },
 }
+
+/// The most points [`StrandSet::resample_by_arclength`] makes (about 1.2 GB of points): far above any
+/// head of hair at 1 mm (a 150k-strand head of 30 cm is 45M), far below a unit mix-up's.
+pub const MAX_RESAMPLED_POINTS: u64 = 100_000_000;
 
 /// Length statistics of a strand set, in the units of its points (metres in hairrecon).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -185,6 +194,11 @@ impl StrandSet {
         if !(step.is_finite() && step > 0.0) {
             return Err(StrandError::BadStep(step));
         }
+        let length: f64 = self.iter().map(|s| polyline_length(s) as f64).sum();
+        let estimate = length / step as f64 + 2.0 * self.num_strands() as f64;
+        if estimate > MAX_RESAMPLED_POINTS as f64 {
+            return Err(StrandError::TooManyPoints { length, step, points: estimate, max: MAX_RESAMPLED_POINTS });
+        }
         let mut points = Vec::new();
         let mut counts = Vec::with_capacity(self.num_strands());
         for s in self.iter() {
@@ -305,6 +319,16 @@ mod tests {
         let s = StrandSet::new(pts, vec![3]).unwrap();
         let r = s.resample_by_arclength(0.001).unwrap();
         assert_eq!(r.counts(), &[16]);
+        // 1000 strands of 300 m (a head in millimetres read as metres) at 1 mm: refused, not 3e8 points.
+        let long = StrandSet::new(
+            (0..1000).flat_map(|i| [Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32, 300.0, 0.0)]).collect(),
+            vec![2; 1000],
+        )
+        .unwrap();
+        let e = long.resample_by_arclength(0.001).unwrap_err();
+        assert!(matches!(e, StrandError::TooManyPoints { .. }) && e.to_string().contains("millimetres"), "{e}");
+        let n = long.resample_by_arclength(0.01).unwrap().num_points();
+        assert!((30_000_000..30_010_000).contains(&n), "{n}");
         let st = r.strand(0);
         assert_eq!(st[0], Vec3::ZERO);
         assert_eq!(st[15], Vec3::new(0.01, 0.005, 0.0));
