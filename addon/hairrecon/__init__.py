@@ -5,12 +5,13 @@ as an abi3 wheel (see blender_manifest.toml); this package holds the Blender sid
 
 - ``core/``: bpy-free camera maths, capture writing and surface attachment (unit-testable),
 - ``scene_read`` / ``scene_build``: scene -> numpy, numpy -> Curves/meshes/cameras,
-- ``session``: one run (capture, job, result), ``operators``, ``props``, ``ui``.
+- ``session``: one run (capture, job, result), ``operators``, ``props``, ``ui``,
+- ``import_calibration``: File > Import of COLMAP, Metashape and transforms.json calibrations.
 """
 
-from . import operators, props, ui
+from . import import_calibration, operators, props, ui
 
-_MODULES = (props, operators, ui)
+_MODULES = (props, operators, import_calibration, ui)
 
 
 def register():

@@ -178,7 +178,7 @@ class HAIRRECON_OT_import_capture(bpy.types.Operator):
     def execute(self, context):
         created = scene_build.Created()
         try:
-            self._build(context, created)
+            level, msg = build_capture_scene(context, created, Path(bpy.path.abspath(self.directory)), self.import_ground_truth)
         except (UserError, CaptureInputError) as e:
             created.remove()
             self.report({"ERROR"}, str(e))
@@ -192,81 +192,87 @@ class HAIRRECON_OT_import_capture(bpy.types.Operator):
                 traceback.print_exc()
                 self.report({"ERROR"}, f"cannot import the capture: {e}")
             return {"CANCELLED"}
+        self.report(level, msg)
         return {"FINISHED"}
 
-    def _build(self, context, created):
-        hr = library()
-        d = Path(bpy.path.abspath(self.directory))
-        if not (d / "capture.json").is_file():
-            raise UserError(f"{d} has no capture.json; pick a capture folder")
-        hr.load_capture(str(d))  # validates, with messages that name the view and file
-        spec = read_capture_json(d)
-        views = spec["views"]
-        sizes = {(v["width"], v["height"]) for v in views}
-        if len(sizes) != 1:
-            raise UserError(
-                f"the views have different image sizes {sorted(sizes)}; a Blender scene has one render resolution"
-            )
-        scene = context.scene
-        name = d.name or "capture"
-        top = created.add(bpy.data.collections.new(f"Capture {name}"))
-        cams = created.add(bpy.data.collections.new(f"Cameras {name}"))
-        top.children.link(cams)
-        aspects, cam_objs, skews = set(), [], 0
-        for v in views:
-            cam = PinholeCamera(np.array(v["K"], float), np.array(v["R"], float), np.array(v["t"], float), v["width"], v["height"])
-            obj, s = scene_build.camera_object(created, cams, v["name"], cam, d / v["image"])
-            aspects.add((round(s.pixel_aspect_x, 6), round(s.pixel_aspect_y, 6)))
-            skews += abs(s.skew) > 1e-6
-            cam_objs.append(obj)
-        if len(aspects) != 1:
-            raise UserError("the views have different pixel aspect ratios (fx/fy); Blender has one per scene")
-        meshes = {}
-        for key, label in (("raw_mesh", "raw_mesh"), ("head_mesh", "head"), ("scalp_mesh", "scalp")):
-            if spec.get(key):
-                m = hr.read_mesh(str(d / spec[key]))
-                uvs = m.get("uvs") if key == "scalp_mesh" else None
-                meshes[key] = scene_build.mesh_object(created, top, label, m["vertices"], m["triangles"], uvs)
-        if "raw_mesh" in meshes:
-            meshes["raw_mesh"].display_type = "WIRE"
-        gt = None
-        if self.import_ground_truth and spec.get("gt_strands"):
-            pts, counts = hr.read_strands(str(d / spec["gt_strands"]))
-            cv = created.add(scene_build.new_hair_curves("ground_truth", np.asarray(pts).reshape(-1, 3), counts, 4e-5, 1e-5))
-            gt = created.add(bpy.data.objects.new("ground_truth", cv))
-            top.objects.link(gt)
 
-        # everything exists: now change the scene's settings (undone by undo, not by `created`)
-        scene.collection.children.link(top)
-        if gt is not None:
-            gt.hide_viewport = True
-            gt.hide_render = True
-        (w, h), (pax, pay) = sizes.pop(), aspects.pop()
-        r = scene.render
-        r.resolution_x, r.resolution_y, r.resolution_percentage = w, h, 100
-        r.pixel_aspect_x, r.pixel_aspect_y = pax, pay
-        scene.camera = cam_objs[0]
-        s = scene.hairrecon
-        s.camera_collection = cams
-        s.photo_folder = ""
-        masks = [v.get("mask") for v in views]
-        if all(masks) and len({str(Path(m).parent) for m in masks}) == 1 and all(
-            Path(m).stem == v["name"] == o.name for m, v, o in zip(masks, views, cam_objs)
-        ):
-            s.mask_folder = str(d / Path(masks[0]).parent)
-        else:
-            s.mask_folder = ""
-        if "raw_mesh" in meshes:
-            s.raw_mesh = meshes["raw_mesh"]
-        if "scalp_mesh" in meshes:
-            s.scalp_source = "OBJECT"
-            s.scalp_object = meshes["scalp_mesh"]
-        if "head_mesh" in meshes:
-            s.head_object = meshes["head_mesh"]
-        msg = f"Imported {len(views)} cameras ({w}x{h})"
-        if skews:
-            msg += f"; {skews} views have a skewed K, which Blender cameras cannot represent (skew dropped)"
-        self.report({"WARNING"} if skews else {"INFO"}, msg)
+def build_capture_scene(context, created: scene_build.Created, d: Path, import_ground_truth: bool = False) -> tuple[set, str]:
+    """Builds the scene of the capture folder ``d``: a collection with the cameras (photos as background
+    images), the raw mesh, the head and the scalp; sets the render resolution, the scene camera and the
+    panel's settings. Every datablock goes into ``created`` (the caller removes them on failure); the
+    scene's settings change only once everything exists. Returns the report ``(level, message)``.
+    Raises UserError, CaptureInputError or the library's errors."""
+    hr = library()
+    if not (d / "capture.json").is_file():
+        raise UserError(f"{d} has no capture.json; pick a capture folder")
+    hr.load_capture(str(d))  # validates, with messages that name the view and file
+    spec = read_capture_json(d)
+    views = spec["views"]
+    sizes = {(v["width"], v["height"]) for v in views}
+    if len(sizes) != 1:
+        raise UserError(
+            f"the views have different image sizes {sorted(sizes)}; a Blender scene has one render resolution"
+        )
+    scene = context.scene
+    name = d.name or "capture"
+    top = created.add(bpy.data.collections.new(f"Capture {name}"))
+    cams = created.add(bpy.data.collections.new(f"Cameras {name}"))
+    top.children.link(cams)
+    aspects, cam_objs, skews = set(), [], 0
+    for v in views:
+        cam = PinholeCamera(np.array(v["K"], float), np.array(v["R"], float), np.array(v["t"], float), v["width"], v["height"])
+        obj, s = scene_build.camera_object(created, cams, v["name"], cam, d / v["image"])
+        aspects.add((round(s.pixel_aspect_x, 6), round(s.pixel_aspect_y, 6)))
+        skews += abs(s.skew) > 1e-6
+        cam_objs.append(obj)
+    if len(aspects) != 1:
+        raise UserError("the views have different pixel aspect ratios (fx/fy); Blender has one per scene")
+    meshes = {}
+    for key, label in (("raw_mesh", "raw_mesh"), ("head_mesh", "head"), ("scalp_mesh", "scalp")):
+        if spec.get(key):
+            m = hr.read_mesh(str(d / spec[key]))
+            uvs = m.get("uvs") if key == "scalp_mesh" else None
+            meshes[key] = scene_build.mesh_object(created, top, label, m["vertices"], m["triangles"], uvs)
+    if "raw_mesh" in meshes:
+        meshes["raw_mesh"].display_type = "WIRE"
+    gt = None
+    if import_ground_truth and spec.get("gt_strands"):
+        pts, counts = hr.read_strands(str(d / spec["gt_strands"]))
+        cv = created.add(scene_build.new_hair_curves("ground_truth", np.asarray(pts).reshape(-1, 3), counts, 4e-5, 1e-5))
+        gt = created.add(bpy.data.objects.new("ground_truth", cv))
+        top.objects.link(gt)
+
+    # everything exists: now change the scene's settings (undone by undo, not by `created`)
+    scene.collection.children.link(top)
+    if gt is not None:
+        gt.hide_viewport = True
+        gt.hide_render = True
+    (w, h), (pax, pay) = sizes.pop(), aspects.pop()
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = w, h, 100
+    r.pixel_aspect_x, r.pixel_aspect_y = pax, pay
+    scene.camera = cam_objs[0]
+    s = scene.hairrecon
+    s.camera_collection = cams
+    s.photo_folder = ""
+    masks = [v.get("mask") for v in views]
+    if all(masks) and len({str(Path(m).parent) for m in masks}) == 1 and all(
+        Path(m).stem == v["name"] == o.name for m, v, o in zip(masks, views, cam_objs)
+    ):
+        s.mask_folder = str(d / Path(masks[0]).parent)
+    else:
+        s.mask_folder = ""
+    if "raw_mesh" in meshes:
+        s.raw_mesh = meshes["raw_mesh"]
+    if "scalp_mesh" in meshes:
+        s.scalp_source = "OBJECT"
+        s.scalp_object = meshes["scalp_mesh"]
+    if "head_mesh" in meshes:
+        s.head_object = meshes["head_mesh"]
+    msg = f"Imported {len(views)} cameras ({w}x{h})"
+    if skews:
+        msg += f"; {skews} views have a skewed K, which Blender cameras cannot represent (skew dropped)"
+    return ({"WARNING"} if skews else {"INFO"}), msg
 
 
 class HAIRRECON_OT_export_hair(bpy.types.Operator, ExportHelper):

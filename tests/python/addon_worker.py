@@ -780,6 +780,51 @@ def task_bad_inputs(p):
     return out
 
 
+def task_import_colmap(p):
+    """File > Import > COLMAP Model on a hand-written model (colmap_fixture.py, written by the test):
+    first with a photo missing (one error, nothing changed or written), then the whole model, then
+    again into the now non-empty capture folder."""
+    out = {"install": install(p.get("zip"))}
+    clear_scene()
+    scene = bpy.context.scene
+
+    def run(model, **kw):
+        before = snapshot()
+        res, err = run_op(bpy.ops.hairrecon.import_colmap, filepath=str(Path(model["sparse"]) / "cameras.txt"),
+                          photos_folder=model["images"], mesh_file=model["mesh"], height=p["height"], **kw)
+        return {"result": res, "error": err, "unchanged": snapshot() == before}
+
+    bad = p["bad"]
+    out["missing_photo"] = run(bad)
+    out["missing_photo"]["written"] = sorted(q.name for q in Path(bad["sparse"]).iterdir())
+    out["missing_photo"]["resolution"] = [scene.render.resolution_x, scene.render.resolution_y]
+    out["good"] = run(p["good"], capture_folder=p["capture"])
+    s = scene.hairrecon
+    out["cameras"] = sorted(o.name for o in s.camera_collection.all_objects if o.type == "CAMERA") if s.camera_collection else []
+    out["resolution"] = [scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage]
+    out["raw_mesh"] = s.raw_mesh.name if s.raw_mesh else None
+    out["raw_mesh_faces"] = len(s.raw_mesh.data.polygons) if s.raw_mesh else 0
+    out["photos"] = sorted(
+        Path(o.data.background_images[0].image.filepath).name for o in s.camera_collection.all_objects
+        if o.type == "CAMERA" and o.data.background_images
+    ) if s.camera_collection else []
+    # the imported cameras give back capture.json's K, R, t
+    spec = json.loads((Path(p["capture"]) / "capture.json").read_text())
+    pkg = extension_package()
+    from importlib import import_module
+
+    sr = import_module(pkg.__name__ + ".scene_read")
+    cam_mod = import_module(pkg.__name__ + ".core.camera")
+    worst_k = worst_rt = 0.0
+    for v in spec["views"]:
+        pin = cam_mod.opencv_from_blender(sr.blender_camera(bpy.data.objects[v["name"]], scene))
+        worst_k = max(worst_k, float(np.abs(pin.K - np.array(v["K"])).max()))
+        worst_rt = max(worst_rt, float(np.abs(pin.R - np.array(v["R"])).max()), float(np.abs(pin.t - np.array(v["t"])).max()))
+    out["camera_roundtrip"] = {"K_max_abs": worst_k, "Rt_max_abs": worst_rt}
+    out["again"] = run(p["good"], capture_folder=p["capture"])
+    return out
+
+
 TASKS = {
     "camera": task_camera,
     "install": task_install,
@@ -787,6 +832,7 @@ TASKS = {
     "cancel": task_cancel,
     "bad_inputs": task_bad_inputs,
     "inspect": task_inspect,
+    "import_colmap": task_import_colmap,
 }
 
 

@@ -393,6 +393,38 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
     assert vg["unchanged"]
 
 
+def test_import_colmap_builds_the_scene_and_refuses_bad_input(extension_zip, tmp_path):
+    """File > Import > COLMAP Model (hairrecon) on a hand-written model with 160x120 photos, imported at a
+    working height of 60: the cameras give back capture.json's K, R, t (and K is the hand-worked
+    scaling); a missing photo is one error that leaves the scene and the disk as they were."""
+    from colmap_fixture import expected_k, write_colmap_model
+
+    good = write_colmap_model(tmp_path / "good", width=160, height=120)
+    bad = write_colmap_model(tmp_path / "bad", width=160, height=120, missing_photo="view_b.png")
+    capture = tmp_path / "capture"
+    out = run_worker("import_colmap", tmp_path / "user", zip=str(extension_zip), good=good, bad=bad,
+                     capture=str(capture), height=60)
+    miss = out["missing_photo"]
+    assert miss["result"] is None and miss["unchanged"], miss
+    assert "view_b.png" in miss["error"] and "does not exist" in miss["error"], miss["error"]
+    assert miss["error"].strip().count("\n") == 0  # one message
+    assert miss["written"] == ["cameras.txt", "images.txt", "points3D.txt"]  # no capture folder, no leftovers
+    assert miss["resolution"] == [1920, 1080]  # the startup scene's: render settings untouched too
+    assert out["good"]["error"] is None and out["good"]["result"] == ["FINISHED"], out["good"]
+    assert out["cameras"] == ["view_a", "view_b"]
+    assert out["resolution"] == [80, 60, 100]  # the working size
+    assert out["raw_mesh"] and out["raw_mesh_faces"] == 8
+    assert out["photos"] == ["view_a.png", "view_b.png"]
+    assert out["camera_roundtrip"]["K_max_abs"] < 1e-3 and out["camera_roundtrip"]["Rt_max_abs"] < 1e-5
+    spec = json.loads((capture / "capture.json").read_text())
+    assert spec["frame"] == "imported"
+    for v in spec["views"]:
+        np.testing.assert_allclose(np.array(v["K"]), expected_k(good["views"][v["name"]], 60), atol=1e-4)
+        np.testing.assert_allclose(np.array(v["R"]), np.array(good["views"][v["name"]]["R"]), atol=1e-6)
+    again = out["again"]  # the capture folder now holds the capture: refused, nothing changes
+    assert again["result"] is None and again["unchanged"] and "not empty" in again["error"], again
+
+
 def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture, tmp_path):
     """The batch script on the saved scene, with the scalp given on the command line as a vertex
     group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it)."""

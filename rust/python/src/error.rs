@@ -11,9 +11,24 @@
 //! Every exception carries the Rust error's message, which names the file or view and says what to
 //! do. Map errors with the functions below ([`capture_err`], [`format_err`], [`input_err`],
 //! [`cancelled_err`]); a reconstruction's error is classified by [`Class::of`] (the job keeps the
-//! class and the message until Python asks, then [`Class::raise`]). Panics never cross the
-//! boundary: entry points run under [`guard`].
+//! class and the message until Python asks, then [`Class::raise`]); an import's error by
+//! [`import_err`]. Panics never cross the boundary: entry points run under [`guard`].
+//!
+//! Imports (`hairrecon.import_colmap`, ...) map their errors by what the user has to fix:
+//!
+//! ```text
+//! InputError    an argument names no calibration (a folder that is not a COLMAP model, a calibration
+//!               file that does not exist), the capture folder exists and is not empty, a bad height
+//! FormatError   the calibration cannot be read or is invalid (syntax, camera model, pose, no views);
+//!               a photo or the raw mesh is missing or cannot be decoded; the capture cannot be written
+//! CaptureError  the files read but do not make a capture: a photo's size does not match its camera,
+//!               two views would get one name (or the written capture does not load: a bug)
+//! Cancelled     the progress callback returned False
+//! ```
 
+use hairrecon_import::capture_writer::WriteError;
+use hairrecon_import::photo::PhotoError;
+use hairrecon_import::ImportError;
 use hairrecon_recon::ReconError;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
@@ -97,6 +112,29 @@ impl Class {
             Class::Other => to_py(msg),
         }
     }
+}
+
+/// The exception of a failed import (the module docs' table), with the Rust message.
+pub fn import_err(e: &hairrecon_import::Error) -> PyErr {
+    let class = match e {
+        hairrecon_import::Error::Read(e) => match e {
+            ImportError::MissingFile { .. } => Class::Input,
+            ImportError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => Class::Input,
+            _ => Class::Format,
+        },
+        hairrecon_import::Error::Write(e) => match e {
+            WriteError::OutExists { .. } => Class::Input,
+            WriteError::Cancelled => Class::Cancelled,
+            WriteError::DuplicateName { .. } | WriteError::Capture(_) => Class::Capture,
+            WriteError::Photo { source, .. } => match source {
+                PhotoError::SizeMismatch { .. } => Class::Capture,
+                PhotoError::BadTarget { .. } => Class::Input,
+                _ => Class::Format,
+            },
+            WriteError::NoViews | WriteError::Mesh(_) | WriteError::Write(_) | WriteError::Io { .. } => Class::Format,
+        },
+    };
+    class.raise(e)
 }
 
 /// Converts any displayable Rust error into the base `hairrecon.Error` (for errors of no more

@@ -3,7 +3,8 @@
 //! Each function borrows its numpy inputs, releases the GIL while Rust works, and converts the
 //! result back; no algorithm lives here. Errors become `hairrecon.Error` or one of its subclasses
 //! `CaptureError`, `FormatError`, `InputError`, `Cancelled` (see the `error` module). File formats for
-//! scripts (capture.json, PNG, OpenEXR) are in the `io` module. Built by maturin with pyo3's `abi3-py311`, so
+//! scripts (capture.json, PNG, OpenEXR) are in the `io` module; importing COLMAP, Metashape and
+//! transforms.json calibrations in the `importer` module. Built by maturin with pyo3's `abi3-py311`, so
 //! one wheel serves Blender 4.2+.
 //!
 //! ```python
@@ -24,6 +25,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 mod error;
+mod importer;
 mod io;
 mod job;
 
@@ -188,5 +190,6 @@ fn hairrecon(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_capture, m)?)?;
     io::register(m)?;
     job::register(m)?;
+    importer::register(m)?;
     Ok(())
 }
