@@ -267,8 +267,11 @@ def test_a_bad_capture_spec_is_a_capture_error_and_writes_nothing(tmp_path):
     s["views"].append(dict(s["views"][0]))
     fails(s, 'two views are named "v0"')
     s = _spec()
-    s["units"] = "millimetres"
-    fails(s, "metres")
+    s["units"] = "cubits"
+    fails(s, 'unknown units "cubits"')
+    s = _spec()
+    s["frame"] = "y-up"
+    fails(s, 'unknown frame "y-up"')
     s = _spec()
     s["views"] = []
     fails(s, "no views")
