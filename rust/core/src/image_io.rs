@@ -115,8 +115,26 @@ fn guarded<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
         .unwrap_or_else(|_| Err(image_err("the decoder failed on malformed data; the file is corrupt")))
 }
 
+/// The most pixels an image read by this module may have (40 megapixels: 480 MB as float RGB),
+/// checked from the header before decoding. Capture images are working copies (`hairrecon
+/// import` scales photos down); a header claiming more is a mistake or a malicious file.
+pub const MAX_PIXELS: u64 = 40_000_000;
+
+fn check_pixels(width: u64, height: u64) -> Result<()> {
+    if width.saturating_mul(height) > MAX_PIXELS {
+        return Err(image_err(format!(
+            "the image is {width}x{height} pixels, more than the {MAX_PIXELS} this reads; scale it down \
+             (hairrecon import makes working copies of photos)"
+        )));
+    }
+    Ok(())
+}
+
 fn decode(bytes: &[u8]) -> Result<Decoded> {
     if bytes.starts_with(PNG_MAGIC) {
+        let size = image::ImageReader::with_format(IoCursor::new(bytes), image::ImageFormat::Png).into_dimensions();
+        let (w, h) = size.map_err(image_err)?;
+        check_pixels(w as u64, h as u64)?;
         guarded(|| {
             let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png).map_err(image_err)?;
             Ok(Decoded::Png(img))
@@ -131,6 +149,11 @@ fn decode(bytes: &[u8]) -> Result<Decoded> {
 
 fn decode_exr(bytes: &[u8]) -> Result<Decoded> {
     use exr::prelude::{read, ReadChannels, ReadLayers};
+    let meta = exr::meta::MetaData::read_from_buffered(IoCursor::new(bytes), false)
+        .map_err(|e| image_err(format!("cannot read the OpenEXR header: {e}")))?;
+    for h in &meta.headers {
+        check_pixels(h.layer_size.width() as u64, h.layer_size.height() as u64)?;
+    }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

@@ -271,3 +271,43 @@ fn raw_image_errors_say_what_to_do() {
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1, "a failed write left a file");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// CRC-32 (PNG's chunk checksum), bit by bit.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+        }
+    }
+    !c
+}
+
+#[test]
+fn an_image_claiming_too_many_pixels_is_refused_before_decoding() {
+    let d = tmp_dir("huge");
+    let path = d.join("small.png");
+    write_png8_gray(&path, &GrayImage32::filled(1, 1, 0.5)).unwrap();
+    let mut png = std::fs::read(&path).unwrap();
+    // IHDR starts at byte 8: length (4), "IHDR" (4), width (4), height (4), ..., CRC over type + data.
+    assert_eq!(&png[12..16], b"IHDR");
+    png[16..20].copy_from_slice(&20_000u32.to_be_bytes());
+    png[20..24].copy_from_slice(&20_000u32.to_be_bytes());
+    let crc = crc32(&png[12..29]);
+    png[29..33].copy_from_slice(&crc.to_be_bytes());
+    let huge = d.join("huge.png");
+    std::fs::write(&huge, &png).unwrap();
+    for e in [read_gray_f32(&huge).unwrap_err(), read_rgb_f32(&huge).unwrap_err(), read_image(&huge).unwrap_err()] {
+        let msg = e.to_string();
+        assert!(msg.contains("20000x20000") && msg.contains("huge.png"), "{msg}");
+    }
+    // The same header at 1x1 still decodes: the check is on the size, not the patching.
+    png[16..20].copy_from_slice(&1u32.to_be_bytes());
+    png[20..24].copy_from_slice(&1u32.to_be_bytes());
+    let crc = crc32(&png[12..29]);
+    png[29..33].copy_from_slice(&crc.to_be_bytes());
+    std::fs::write(&huge, &png).unwrap();
+    assert_eq!(read_gray_f32(&huge).unwrap().width, 1);
+    let _ = std::fs::remove_dir_all(&d);
+}
