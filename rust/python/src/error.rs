@@ -94,7 +94,10 @@ impl Class {
             ReconError::Format(_) | ReconError::Orient2d(_) | ReconError::Points(_) => Class::Format,
             ReconError::StageFile { .. } => Class::Format,
             ReconError::OutDir { .. } | ReconError::Write { .. } => Class::Format,
-            ReconError::NoScalp { .. } | ReconError::Scalp { .. } | ReconError::NotCanonical { .. } => Class::Capture,
+            ReconError::NoScalp { .. }
+            | ReconError::Scalp { .. }
+            | ReconError::NotCanonical { .. }
+            | ReconError::Implausible { .. } => Class::Capture,
             ReconError::Config(_) | ReconError::EmptyPlan { .. } | ReconError::MissingStageOutput { .. } => {
                 Class::Input
             }

@@ -58,6 +58,9 @@ pub enum ReconError {
          not available yet. Reconstruct from a Blender scene set up in that frame, or a capture written in it"
     )]
     NotCanonical { dir: PathBuf, frame: String, units: String },
+    /// A mesh or the cameras cannot be of a head in metres ([`crate::preflight`]).
+    #[error("{what}: {msg}")]
+    Implausible { what: String, msg: String },
     /// The capture has no scalp mesh.
     #[error("the capture {dir} has no scalp mesh; add \"scalp_mesh\" to its capture.json")]
     NoScalp { dir: PathBuf },

@@ -37,6 +37,7 @@ pub mod orient2d;
 pub mod oriented_points;
 pub mod parting;
 pub mod points3d;
+pub mod preflight;
 pub mod progress;
 pub mod raw_mesh;
 pub mod report;

@@ -66,12 +66,13 @@ pub fn reconstruct(
     if from > last {
         return Err(ReconError::EmptyPlan { from, stop: last });
     }
+    let ctx = Context::new(capture, out_dir, progress);
+    crate::preflight::check(&ctx)?;
     mkdir(out_dir)?;
     for (_, files) in stages::OUTPUTS.iter().filter(|(s, _)| *s >= from) {
         files.iter().try_for_each(|f| remove(&out_dir.join(f)))?;
     }
     ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
-    let ctx = Context::new(capture, out_dir, progress);
     let mut report = Report::resumed(&capture.dir, out_dir, from);
     // The report is written whatever happens: a cancelled or failed run lists the stages it finished.
     let run = run_stages(&ctx, cfg, &mut report, from, last);

@@ -92,3 +92,46 @@ fn an_imported_capture_is_refused_before_anything_is_written() {
     ));
     let _ = std::fs::remove_dir_all(&cap.dir);
 }
+
+#[test]
+fn meshes_in_other_units_or_frames_are_refused_before_anything_is_written() {
+    use hairrecon_core::formats::{read_mesh, write_mesh};
+    let cap = capture("units");
+    let out_dir = cap.dir.join("out");
+    let run = |cap: &Capture| reconstruct(cap, &out_dir, &ReconstructConfig::default(), Plan::default(), &NoProgress);
+    let refused = |cap: &Capture, what: &str, words: &[&str]| {
+        let e = run(cap).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, ReconError::Implausible { .. }), "{msg}");
+        assert!(msg.contains(what) && words.iter().all(|w| msg.contains(w)), "{msg}");
+        assert!(!out_dir.exists(), "a refused run created {}", out_dir.display());
+    };
+    let raw = read_mesh(&cap.raw_mesh).unwrap();
+    let scalp = read_mesh(cap.scalp_mesh.as_ref().unwrap()).unwrap();
+    let mm = glam::Affine3A::from_scale(glam::Vec3::splat(1000.0));
+    // The raw mesh in millimetres.
+    let mut c = cap.clone();
+    c.raw_mesh = cap.dir.join("raw_mm.ply");
+    write_mesh(&c.raw_mesh, &raw.transformed(mm)).unwrap();
+    refused(&c, "raw_mm.ply", &["in metres"]);
+    // One triangle.
+    let one = hairrecon_core::mesh::TriMesh::new(raw.vertices.clone(), vec![raw.triangles[0]], None, None).unwrap();
+    write_mesh(&c.raw_mesh, &one).unwrap();
+    refused(&c, "raw_mm.ply", &["1 triangles"]);
+    // The scalp in millimetres, and the scalp somewhere else.
+    let mut c = cap.clone();
+    c.scalp_mesh = Some(cap.dir.join("scalp_mm.ply"));
+    write_mesh(c.scalp_mesh.as_ref().unwrap(), &scalp.transformed(mm)).unwrap();
+    refused(&c, "scalp_mm.ply", &["in metres"]);
+    let away = glam::Affine3A::from_translation(glam::Vec3::new(0.0, 0.0, 2.0));
+    write_mesh(c.scalp_mesh.as_ref().unwrap(), &scalp.transformed(away)).unwrap();
+    refused(&c, "scalp_mm.ply", &["outside the raw mesh"]);
+    // Cameras that see nothing of the mesh: the mesh moved 10 m away.
+    let mut c = cap.clone();
+    c.raw_mesh = cap.dir.join("raw_far.ply");
+    c.scalp_mesh = None;
+    write_mesh(&c.raw_mesh, &raw.transformed(glam::Affine3A::from_translation(glam::Vec3::new(10.0, 0.0, 0.0))))
+        .unwrap();
+    refused(&c, "the cameras", &["same frame"]);
+    let _ = std::fs::remove_dir_all(&cap.dir);
+}
