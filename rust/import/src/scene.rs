@@ -105,3 +105,21 @@ impl SceneView {
         Some([k.fx * xd + k.skew * yd + k.cx, k.fy * yd + k.cy])
     }
 }
+
+impl Scene {
+    /// The same scene in the frame `X' = s Q X + o` of `frame`: points mapped, each camera changed so
+    /// that it sees every point where it saw it (`R' = R Qᵀ`, `t' = s t − R Qᵀ o`).
+    pub fn transformed(&self, frame: &crate::pose::Similarity) -> Scene {
+        use crate::pose;
+        let mut out = self.clone();
+        for v in &mut out.views {
+            // s X_cam = R Qᵀ X' − R Qᵀ o + s t
+            let r = pose::mul(&v.r, &pose::transpose(&frame.rotation));
+            let ro = pose::mul_vec(&r, &frame.translation);
+            v.t = [0, 1, 2].map(|i| frame.scale * v.t[i] - ro[i]);
+            v.r = r;
+        }
+        out.points = self.points.iter().map(|p| frame.apply(p)).collect();
+        out
+    }
+}

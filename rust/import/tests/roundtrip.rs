@@ -94,20 +94,6 @@ fn random_similarity(rng: &mut Rng) -> Similarity {
     }
 }
 
-/// `scene` in the frame `X' = s Q X + o`, with the same projections.
-fn move_scene(scene: &Scene, s: &Similarity) -> Scene {
-    let mut out = scene.clone();
-    for v in &mut out.views {
-        // s X_cam = R Qᵀ X' - R Qᵀ o + s t
-        let r = pose::mul(&v.r, &pose::transpose(&s.rotation));
-        let ro = pose::mul_vec(&r, &s.translation);
-        v.t = [0, 1, 2].map(|i| s.scale * v.t[i] - ro[i]);
-        v.r = r;
-    }
-    out.points = scene.points.iter().map(|p| s.apply(p)).collect();
-    out
-}
-
 /// Every view of `read` (in the frame `s`) projects every point of `original` where `original`'s
 /// views do, within 1e-3 px.
 fn assert_same_projections(original: &Scene, read: &Scene, s: &Similarity, what: &str) {
@@ -137,7 +123,7 @@ type Reader = fn(&Path) -> Result<Scene, ImportError>;
 fn round_trip(scene: &Scene, rng: &mut Rng, file: &str, write: Writer, read: Reader, what: &str) {
     for k in 0..3 {
         let s = if k == 0 { Similarity::IDENTITY } else { random_similarity(rng) };
-        let moved = move_scene(scene, &s);
+        let moved = scene.transformed(&s);
         let dir = tmpdir(&format!("{what}-{k}"));
         let path = if file.is_empty() { dir.clone() } else { dir.join(file) };
         write(&path, &moved).unwrap_or_else(|e| panic!("{what}: {e}"));
