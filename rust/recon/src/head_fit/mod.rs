@@ -30,7 +30,7 @@ use hairrecon_core::{Bvh, Camera, TriMesh};
 use rayon::prelude::*;
 use thiserror::Error;
 
-pub use icp::{trimmed_icp, IcpOptions, IcpOutcome};
+pub use icp::{trimmed_icp, IcpMetric, IcpOptions, IcpOutcome};
 pub use template::{HeadTemplate, SurfaceStats};
 
 /// `x ↦ scale · rotation · x + translation`.
@@ -115,7 +115,7 @@ impl Default for FitOptions {
             coarse_points: 120,
             coarse_iterations: 6,
             refine_best: 4,
-            refine_iterations: 80,
+            refine_iterations: 30,
             keep: 0.7,
             max_residual_mm: 4.0,
             inlier_mm: 3.0,
@@ -263,7 +263,7 @@ fn acceptable(stats: &(f64, f64), opts: &FitOptions) -> bool {
 fn evaluate(template: &HeadTemplate, bvh: &Bvh, t: &Similarity, opts: &FitOptions) -> (f64, f64) {
     let cap = 0.5 * t.scale * template.stats.radius;
     let mut d: Vec<f64> =
-        icp::match_points(&template.points, t, bvh, cap, true).into_iter().map(|(_, d)| d / t.scale).collect();
+        icp::match_points(&template.points, t, bvh, cap, true).into_iter().map(|m| m.distance / t.scale).collect();
     let inliers = d.iter().filter(|&&x| x * 1e3 <= opts.inlier_mm).count() as f64 / d.len() as f64;
     (icp::trimmed_rms(&mut d, opts.keep) * 1e3, inliers)
 }
@@ -277,7 +277,7 @@ fn search(
     opts: &FitOptions,
 ) -> (Candidate, Option<Candidate>) {
     let coarse_pts = &template.points[..opts.coarse_points.clamp(3, template.points.len())];
-    let brief = IcpOptions { iterations: opts.coarse_iterations, keep: opts.keep, tolerance: 0.0, parallel: false };
+    let brief = IcpOptions { metric: IcpMetric::Point, iterations: opts.coarse_iterations, keep: opts.keep, tolerance: 0.0, parallel: false };
     let cap_of = |t: &Similarity| 0.5 * t.scale * template.stats.radius;
     let mut coarse: Vec<(usize, Candidate)> = starts
         .par_iter()
@@ -298,17 +298,29 @@ fn search(
             picked.push(*c);
         }
     }
-    let full = IcpOptions { iterations: opts.refine_iterations, keep: opts.keep, tolerance: 1e-7, parallel: true };
+    // The picked few: a few point-to-point steps on more points (robust while still far), then
+    // point-to-plane to convergence; the best of them refined on all points.
+    let mid_pts = &template.points[..(4 * opts.coarse_points).clamp(3, template.points.len())];
+    let settle = IcpOptions { metric: IcpMetric::Point, iterations: 10, keep: opts.keep, tolerance: 0.0, parallel: true };
+    let plane = IcpOptions {
+        metric: IcpMetric::Plane,
+        iterations: opts.refine_iterations,
+        keep: opts.keep,
+        tolerance: 1e-6,
+        parallel: true,
+    };
     let mut refined: Vec<Candidate> = picked
         .iter()
         .map(|c| {
-            let o = trimmed_icp(&template.points, bvh, c.t, cap_of(&c.t), &full);
+            let o = trimmed_icp(mid_pts, bvh, c.t, cap_of(&c.t), &settle);
+            let o = trimmed_icp(mid_pts, bvh, o.transform, cap_of(&o.transform), &plane);
             Candidate { t: o.transform, residual: o.residual }
         })
         .collect();
     refined.sort_by(|a, b| a.residual.total_cmp(&b.residual));
-    let best = refined[0];
-    let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&best.t) > 30.0).copied();
+    let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
+    let o = trimmed_icp(&template.points, bvh, refined[0].t, cap_of(&refined[0].t), &IcpOptions { tolerance: 1e-7, ..plane });
+    let best = Candidate { t: o.transform, residual: o.residual };
     (best, runner_up)
 }
 
