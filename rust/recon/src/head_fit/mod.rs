@@ -30,7 +30,7 @@ use hairrecon_core::{Bvh, Camera, TriMesh};
 use rayon::prelude::*;
 use thiserror::Error;
 
-pub use icp::{trimmed_icp, IcpMetric, IcpOptions, IcpOutcome};
+pub use icp::{trimmed_icp, IcpMetric, IcpOptions, IcpOutcome, SurfaceSamples, Target};
 pub use template::{HeadTemplate, SurfaceStats};
 
 /// `x ↦ scale · rotation · x + translation`.
@@ -89,6 +89,8 @@ pub struct FitOptions {
     pub rotations: usize,
     /// Template points each coarse candidate is refined with.
     pub coarse_points: usize,
+    /// Raw-surface points the coarse search registers to (nearest points in a kd-tree).
+    pub coarse_samples: usize,
     /// ICP iterations per coarse candidate.
     pub coarse_iterations: usize,
     /// The best coarse candidates refined fully.
@@ -113,8 +115,9 @@ impl Default for FitOptions {
         Self {
             rotations: 240,
             coarse_points: 120,
-            coarse_iterations: 6,
-            refine_best: 4,
+            coarse_samples: 20_000,
+            coarse_iterations: 8,
+            refine_best: 3,
             refine_iterations: 30,
             keep: 0.7,
             max_residual_mm: 4.0,
@@ -190,7 +193,10 @@ pub fn fit_similarity(
         normals: None,
         uvs: None,
     };
+    let t0 = std::time::Instant::now();
     let bvh = Bvh::new(normalised);
+    eprintln!("TIMING bvh {:?}", t0.elapsed());
+    let cloud = SurfaceSamples::new(template::sample_surface_normals(bvh.mesh(), |_| true, opts.coarse_samples, 0x5eed_c10d));
     let prior = cameras.and_then(coarse::camera_prior).map(|(up, c)| (up, norm.apply(c)));
 
     let tstats = template.stats;
@@ -210,12 +216,13 @@ pub fn fit_similarity(
     }
     let starts: Vec<Similarity> =
         centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
-    let (mut best, mut runner_up) = search(template, &bvh, &starts, opts);
+    let (mut best, mut runner_up) = search(template, &bvh, &cloud, &starts, opts);
+    eprintln!("TIMING search {:?}", t0.elapsed());
     let mut used_fallback = false;
     let mut stats = evaluate(template, &bvh, &best.t, opts);
     if !acceptable(&stats, opts) {
         used_fallback = true;
-        let samples = template::sample_surface(&bvh.mesh().clone(), |_| true, 4000, 0x5eed_b10b);
+        let samples = template::sample_surface(bvh.mesh(), |_| true, 4000, 0x5eed_b10b);
         let mut starts = Vec::new();
         for &f in &opts.fallback_scales {
             // A head's skull fits in a ball of about 0.1 m about its centre: the template's radius
@@ -228,7 +235,7 @@ pub fn fit_similarity(
                 starts.extend(rotations.iter().map(|&r| pose(r, c, f)));
             }
         }
-        let (b, r) = search(template, &bvh, &starts, opts);
+        let (b, r) = search(template, &bvh, &cloud, &starts, opts);
         let s = evaluate(template, &bvh, &b.t, opts);
         if s.0 < stats.0 {
             (best, runner_up, stats) = (b, r, s);
@@ -273,21 +280,34 @@ fn evaluate(template: &HeadTemplate, bvh: &Bvh, t: &Similarity, opts: &FitOption
 fn search(
     template: &HeadTemplate,
     bvh: &Bvh,
+    cloud: &SurfaceSamples,
     starts: &[Similarity],
     opts: &FitOptions,
 ) -> (Candidate, Option<Candidate>) {
-    let coarse_pts = &template.points[..opts.coarse_points.clamp(3, template.points.len())];
-    let brief = IcpOptions { metric: IcpMetric::Point, iterations: opts.coarse_iterations, keep: opts.keep, tolerance: 0.0, parallel: false };
     let cap_of = |t: &Similarity| 0.5 * t.scale * template.stats.radius;
-    let mut coarse: Vec<(usize, Candidate)> = starts
-        .par_iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let o = trimmed_icp(coarse_pts, bvh, *s, cap_of(s), &brief);
-            (i, Candidate { t: o.transform, residual: o.residual })
-        })
-        .collect();
-    coarse.sort_by(|a, b| a.1.residual.total_cmp(&b.1.residual).then(a.0.cmp(&b.0)));
+    // Brief point-to-plane ICP on the surface samples from each start, in parallel, ranked by
+    // residual (ties by start, for determinism).
+    let brief = |starts: &[(usize, Similarity)], points: usize, iterations: usize| {
+        let pts = &template.points[..points.clamp(3, template.points.len())];
+        let o = IcpOptions { metric: IcpMetric::Plane, iterations, keep: opts.keep, tolerance: 0.0, parallel: false };
+        let mut out: Vec<(usize, Candidate)> = starts
+            .par_iter()
+            .map(|&(i, s)| {
+                let r = trimmed_icp(pts, cloud, s, cap_of(&s), &o);
+                (i, Candidate { t: r.transform, residual: r.residual })
+            })
+            .collect();
+        out.sort_by(|a, b| a.1.residual.total_cmp(&b.1.residual).then(a.0.cmp(&b.0)));
+        out
+    };
+    let t1 = std::time::Instant::now();
+    // Every start briefly on half the points; the most promising quarter on to convergence.
+    let all: Vec<(usize, Similarity)> = starts.iter().copied().enumerate().collect();
+    let first = brief(&all, opts.coarse_points / 2, opts.coarse_iterations / 2);
+    let promising: Vec<(usize, Similarity)> =
+        first.iter().take(first.len().div_ceil(4).max(opts.refine_best)).map(|(i, c)| (*i, c.t)).collect();
+    let coarse = brief(&promising, opts.coarse_points, opts.coarse_iterations);
+    eprintln!("TIMING coarse {:?}", t1.elapsed());
     // The best few, distinct in rotation (near-duplicates converge to the same pose).
     let mut picked: Vec<Candidate> = Vec::new();
     for (_, c) in &coarse {
@@ -298,29 +318,29 @@ fn search(
             picked.push(*c);
         }
     }
-    // The picked few: a few point-to-point steps on more points (robust while still far), then
-    // point-to-plane to convergence; the best of them refined on all points.
+    // The picked few on the mesh itself with more points, then the best of them on all points.
     let mid_pts = &template.points[..(4 * opts.coarse_points).clamp(3, template.points.len())];
-    let settle = IcpOptions { metric: IcpMetric::Point, iterations: 10, keep: opts.keep, tolerance: 0.0, parallel: true };
     let plane = IcpOptions {
         metric: IcpMetric::Plane,
         iterations: opts.refine_iterations,
         keep: opts.keep,
         tolerance: 1e-6,
-        parallel: true,
+        parallel: false,
     };
     let mut refined: Vec<Candidate> = picked
-        .iter()
+        .par_iter()
         .map(|c| {
-            let o = trimmed_icp(mid_pts, bvh, c.t, cap_of(&c.t), &settle);
-            let o = trimmed_icp(mid_pts, bvh, o.transform, cap_of(&o.transform), &plane);
+            let o = trimmed_icp(mid_pts, bvh, c.t, cap_of(&c.t), &IcpOptions { tolerance: 1e-5, ..plane });
             Candidate { t: o.transform, residual: o.residual }
         })
         .collect();
+    eprintln!("TIMING refined {:?}", t1.elapsed());
     refined.sort_by(|a, b| a.residual.total_cmp(&b.residual));
     let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
-    let o = trimmed_icp(&template.points, bvh, refined[0].t, cap_of(&refined[0].t), &IcpOptions { tolerance: 1e-7, ..plane });
+    let o = trimmed_icp(&template.points, bvh, refined[0].t, cap_of(&refined[0].t), &IcpOptions { tolerance: 1e-7, parallel: true, ..plane });
     let best = Candidate { t: o.transform, residual: o.residual };
+    let good: Vec<usize> = coarse.iter().enumerate().filter(|(_, c)| c.1.t.rotation_angle_to(&best.t) < 15.0).map(|(k, _)| k).collect();
+    eprintln!("TIMING good {} of {}, first rank {:?}, best wrong {:.2} mm vs right {:.2} mm", good.len(), coarse.len(), good.first(), coarse.iter().find(|c| c.1.t.rotation_angle_to(&best.t) > 30.0).map(|c| c.1.residual*1e3).unwrap_or(0.0), good.first().map(|&g| coarse[g].1.residual*1e3).unwrap_or(-1.0));
     (best, runner_up)
 }
 

@@ -62,6 +62,16 @@ impl Rng {
 /// `n` points on the triangles `keep` admits, area-weighted, in random order (any prefix is itself
 /// a uniform sample).
 pub(crate) fn sample_surface(mesh: &TriMesh, keep: impl Fn(usize) -> bool, n: usize, seed: u64) -> Vec<DVec3> {
+    sample_surface_normals(mesh, keep, n, seed).into_iter().map(|(p, _)| p).collect()
+}
+
+/// As [`sample_surface`], with each point's triangle normal.
+pub(crate) fn sample_surface_normals(
+    mesh: &TriMesh,
+    keep: impl Fn(usize) -> bool,
+    n: usize,
+    seed: u64,
+) -> Vec<(DVec3, DVec3)> {
     let mut cdf = Vec::with_capacity(mesh.triangles.len());
     let mut ids = Vec::with_capacity(mesh.triangles.len());
     let mut total = 0.0;
@@ -85,7 +95,7 @@ pub(crate) fn sample_surface(mesh: &TriMesh, keep: impl Fn(usize) -> bool, n: us
             if u + v > 1.0 {
                 (u, v) = (1.0 - u, 1.0 - v);
             }
-            a + u * (b - a) + v * (c - a)
+            (a + u * (b - a) + v * (c - a), mesh.face_normal(ids[k]).as_dvec3())
         })
         .collect()
 }
@@ -112,6 +122,11 @@ impl HeadTemplate {
         let is_skin = |i: usize| !head.corners(i).iter().all(|&v| scalp_vertices.contains(&key(v)));
         let points = sample_surface(head, is_skin, samples.max(16), seed);
         (!points.is_empty()).then_some(Self { points, stats })
+    }
+
+    /// The skin sample points (canonical frame, metres), in random order.
+    pub fn points(&self) -> &[DVec3] {
+        &self.points
     }
 
     /// The number of sample points.
