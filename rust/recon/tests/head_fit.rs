@@ -167,3 +167,137 @@ fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
     );
     assert!(failures.is_empty(), "{} of 50 failed:\n{}", failures.len(), failures.join("\n"));
 }
+
+/// Fits `raw` (the canonical head changed somehow) moved by a fixed similarity; returns the errors.
+fn fit_moved(raw: &TriMesh, head: &TriMesh, seed: u64) -> Result<(f64, f64, f64, FitResult), FitError> {
+    let mut rng = Rng(seed);
+    let truth = random_similarity(&mut rng);
+    let raw = moved(&add_noise(raw, 0.0005, &mut rng), &truth);
+    let fit = fit_similarity(&template(head), &raw, None, &FitOptions::default())?;
+    let (rot, scale, pos) = errors(&fit, &truth, head);
+    println!(
+        "rotation {rot:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm, inliers {:.0}%, runner-up {:?} mm, \
+         fallback {}",
+        scale * 100.0,
+        pos * 1e3,
+        fit.residual_mm,
+        fit.inlier_fraction * 100.0,
+        fit.runner_up_mm,
+        fit.used_fallback
+    );
+    Ok((rot, scale, pos, fit))
+}
+
+#[test]
+fn fits_a_head_whose_crown_is_missing() {
+    let head = fixture("head.ply");
+    let (lo, hi) = head.bbox();
+    let cut = hi.z - 0.2 * (hi.z - lo.z);
+    let triangles = (0..head.triangles.len())
+        .filter(|&i| head.corners(i).iter().map(|c| c.z).sum::<f32>() / 3.0 < cut)
+        .map(|i| head.triangles[i])
+        .collect();
+    let raw = TriMesh::new(head.vertices.clone(), triangles, None, None).unwrap();
+    let (rot, scale, pos, _) = fit_moved(&raw, &head, 11).unwrap();
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}
+
+/// A box from `lo` to `hi`, each face split into `n` × `n` quads.
+fn boxed(lo: Vec3, hi: Vec3, n: usize) -> TriMesh {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    let size = hi - lo;
+    for axis in 0..3 {
+        for side in [0.0f32, 1.0] {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let base = vertices.len() as u32;
+            for i in 0..=n {
+                for j in 0..=n {
+                    let mut p = Vec3::ZERO;
+                    p[axis] = side;
+                    p[u] = i as f32 / n as f32;
+                    p[v] = j as f32 / n as f32;
+                    vertices.push(lo + p * size);
+                }
+            }
+            for i in 0..n as u32 {
+                for j in 0..n as u32 {
+                    let k = base + i * (n as u32 + 1) + j;
+                    triangles.push([k, k + n as u32 + 1, k + n as u32 + 2]);
+                    triangles.push([k, k + n as u32 + 2, k + 1]);
+                }
+            }
+        }
+    }
+    TriMesh::new(vertices, triangles, None, None).unwrap()
+}
+
+fn merged(parts: &[&TriMesh]) -> TriMesh {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    for m in parts {
+        let base = vertices.len() as u32;
+        vertices.extend_from_slice(&m.vertices);
+        triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+    TriMesh::new(vertices, triangles, None, None).unwrap()
+}
+
+#[test]
+fn fits_a_head_on_a_torso_before_a_backdrop() {
+    let head = fixture("head.ply");
+    // A torso under the shoulders' cut (0.45 × 0.25 × 0.35 m) and a backdrop 1 m square, 0.35 m
+    // behind the head: together four times the head's area.
+    let torso = boxed(Vec3::new(-0.225, -0.125, -0.52), Vec3::new(0.225, 0.125, -0.17), 12);
+    let backdrop = boxed(Vec3::new(-0.5, 0.35, -0.6), Vec3::new(0.5, 0.36, 0.4), 20);
+    let raw = merged(&[&head, &torso, &backdrop]);
+    let (rot, scale, pos, _) = fit_moved(&raw, &head, 12).unwrap();
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}
+
+#[test]
+fn a_mesh_that_is_not_a_head_fails_with_its_residual() {
+    let head = fixture("head.ply");
+    // A lumpy blob of a head's size.
+    let mut blob = boxed(Vec3::splat(-1.0), Vec3::splat(1.0), 24);
+    for v in &mut blob.vertices {
+        let d = v.normalize();
+        let r = 0.1 * (1.0 + 0.15 * (3.0 * d.x).sin() * (2.0 * d.y).cos() + 0.1 * (4.0 * d.z).sin());
+        *v = d * r;
+    }
+    let err = fit_moved(&blob, &head, 13).expect_err("a blob is not a head");
+    let msg = err.to_string();
+    println!("{msg}");
+    assert!(matches!(err, FitError::Poor { .. }));
+    assert!(msg.contains("residual") && msg.contains("mm"), "{msg}");
+}
+
+#[test]
+fn cameras_around_the_head_give_its_up_and_centre() {
+    use hairrecon_core::Camera;
+    use hairrecon_recon::head_fit::coarse::camera_prior;
+    let head = fixture("head.ply");
+    let mut rng = Rng(14);
+    let truth = random_similarity(&mut rng);
+    // Eight cameras on a ring 0.8 m from the head, level with it, looking at its centre (canonical).
+    let cameras: Vec<Camera> = (0..8)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / 8.0;
+            let eye = Vec3::new(0.8 * a.cos(), 0.8 * a.sin(), 0.1);
+            let c = Camera::look_at(eye, Vec3::new(0.0, 0.0, 0.05), Vec3::Z, 0.6, 400, 600).unwrap();
+            // The same camera in the raw frame: R' = R Tᵣᵀ, t' = s t − R' T.t (camera coordinates scaled by s).
+            let r = c.r().as_dmat3() * truth.rotation.transpose();
+            let t = truth.scale * c.t().as_dvec3() - r * truth.translation;
+            let rows = r.transpose().to_cols_array_2d().map(|row| row.map(|v| v as f32));
+            Camera::new(c.k_rows(), rows, t.as_vec3().to_array(), 400, 600).unwrap()
+        })
+        .collect();
+    let (up, centre) = camera_prior(&cameras).unwrap();
+    assert!(up.angle_between(truth.rotation * DVec3::Z).to_degrees() < 0.1, "{up:?}");
+    assert!((centre - truth.apply(DVec3::new(0.0, 0.0, 0.05))).length() < 1e-3 * truth.scale);
+    let raw = moved(&punch_holes(&add_noise(&head, 0.0005, &mut rng), 4, 0.10, &mut rng), &truth);
+    let fit = fit_similarity(&template(&head), &raw, Some(&cameras), &FitOptions::default()).unwrap();
+    let (rot, scale, pos) = errors(&fit, &truth, &head);
+    println!("with cameras: rotation {rot:.3}°, scale {:.3}%, position {:.2} mm", scale * 100.0, pos * 1e3);
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}

@@ -193,10 +193,9 @@ pub fn fit_similarity(
         normals: None,
         uvs: None,
     };
-    let t0 = std::time::Instant::now();
     let bvh = Bvh::new(normalised);
-    eprintln!("TIMING bvh {:?}", t0.elapsed());
-    let cloud = SurfaceSamples::new(template::sample_surface_normals(bvh.mesh(), |_| true, opts.coarse_samples, 0x5eed_c10d));
+    let cloud =
+        SurfaceSamples::new(template::sample_surface_normals(bvh.mesh(), |_| true, opts.coarse_samples, 0x5eed_c10d));
     let prior = cameras.and_then(coarse::camera_prior).map(|(up, c)| (up, norm.apply(c)));
 
     let tstats = template.stats;
@@ -217,7 +216,6 @@ pub fn fit_similarity(
     let starts: Vec<Similarity> =
         centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
     let (mut best, mut runner_up) = search(template, &bvh, &cloud, &starts, opts);
-    eprintln!("TIMING search {:?}", t0.elapsed());
     let mut used_fallback = false;
     let mut stats = evaluate(template, &bvh, &best.t, opts);
     if !acceptable(&stats, opts) {
@@ -300,14 +298,12 @@ fn search(
         out.sort_by(|a, b| a.1.residual.total_cmp(&b.1.residual).then(a.0.cmp(&b.0)));
         out
     };
-    let t1 = std::time::Instant::now();
     // Every start briefly on half the points; the most promising quarter on to convergence.
     let all: Vec<(usize, Similarity)> = starts.iter().copied().enumerate().collect();
     let first = brief(&all, opts.coarse_points / 2, opts.coarse_iterations / 2);
     let promising: Vec<(usize, Similarity)> =
         first.iter().take(first.len().div_ceil(4).max(opts.refine_best)).map(|(i, c)| (*i, c.t)).collect();
     let coarse = brief(&promising, opts.coarse_points, opts.coarse_iterations);
-    eprintln!("TIMING coarse {:?}", t1.elapsed());
     // The best few, distinct in rotation (near-duplicates converge to the same pose).
     let mut picked: Vec<Candidate> = Vec::new();
     for (_, c) in &coarse {
@@ -334,13 +330,16 @@ fn search(
             Candidate { t: o.transform, residual: o.residual }
         })
         .collect();
-    eprintln!("TIMING refined {:?}", t1.elapsed());
     refined.sort_by(|a, b| a.residual.total_cmp(&b.residual));
     let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
-    let o = trimmed_icp(&template.points, bvh, refined[0].t, cap_of(&refined[0].t), &IcpOptions { tolerance: 1e-7, parallel: true, ..plane });
+    let o = trimmed_icp(
+        &template.points,
+        bvh,
+        refined[0].t,
+        cap_of(&refined[0].t),
+        &IcpOptions { tolerance: 1e-7, parallel: true, ..plane },
+    );
     let best = Candidate { t: o.transform, residual: o.residual };
-    let good: Vec<usize> = coarse.iter().enumerate().filter(|(_, c)| c.1.t.rotation_angle_to(&best.t) < 15.0).map(|(k, _)| k).collect();
-    eprintln!("TIMING good {} of {}, first rank {:?}, best wrong {:.2} mm vs right {:.2} mm", good.len(), coarse.len(), good.first(), coarse.iter().find(|c| c.1.t.rotation_angle_to(&best.t) > 30.0).map(|c| c.1.residual*1e3).unwrap_or(0.0), good.first().map(|&g| coarse[g].1.residual*1e3).unwrap_or(-1.0));
     (best, runner_up)
 }
 
