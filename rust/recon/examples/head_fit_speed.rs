@@ -47,21 +47,38 @@ fn main() {
         rotation: DMat3::from_axis_angle(DVec3::new(0.3, -0.8, 0.5).normalize(), 2.2),
         translation: DVec3::new(12.0, -3.0, 40.0),
     };
-    let raw = transform_mesh(&raw, &truth);
+    // The same with a backdrop four times the head's area 0.35 m behind it (two triangles): the
+    // scale and centre priors are wrong, so the fallback search runs.
+    let mut with_backdrop = raw.clone();
+    let b = with_backdrop.vertices.len() as u32;
+    with_backdrop.vertices.extend([
+        glam::Vec3::new(-0.45, 0.35, -0.6),
+        glam::Vec3::new(0.45, 0.35, -0.6),
+        glam::Vec3::new(0.45, 0.35, 0.3),
+        glam::Vec3::new(-0.45, 0.35, 0.3),
+    ]);
+    with_backdrop.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+    for (what, raw) in [("head", raw), ("head and backdrop", with_backdrop)] {
+        run(what, &transform_mesh(&raw, &truth), &template, &truth);
+    }
+}
+
+fn run(what: &str, raw: &TriMesh, template: &HeadTemplate, truth: &Similarity) {
     println!(
-        "raw mesh: {} vertices, {} triangles; {} threads",
+        "{what}: {} vertices, {} triangles; {} threads",
         raw.vertices.len(),
         raw.triangles.len(),
         rayon::current_num_threads()
     );
     let t0 = Instant::now();
-    let fit = fit_similarity(&template, &raw, None, &FitOptions::default()).expect("fit");
+    let fit = fit_similarity(template, raw, None, &FitOptions::default()).expect("fit");
     let secs = t0.elapsed().as_secs_f64();
     let want = truth.inverse();
     println!(
-        "fit in {secs:.2} s: residual {:.3} mm, rotation error {:.3}°, scale error {:.3}%",
+        "  fit in {secs:.2} s: residual {:.3} mm, rotation error {:.3}°, scale error {:.3}%, fallback {}",
         fit.residual_mm,
         want.rotation_angle_to(&fit.to_canonical),
-        (fit.to_canonical.scale / want.scale - 1.0).abs() * 100.0
+        (fit.to_canonical.scale / want.scale - 1.0).abs() * 100.0,
+        fit.used_fallback
     );
 }

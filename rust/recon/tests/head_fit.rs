@@ -133,6 +133,9 @@ fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
     let t0 = Instant::now();
     let mut worst = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let mut failures = Vec::new();
+    // The lowest residual of a refined pose more than 30° from the winner (a face/back or top/bottom
+    // confusion would show here).
+    let mut closest_rival = f64::INFINITY;
     for case in 0..50 {
         let truth = random_similarity(&mut rng);
         let raw = punch_holes(&add_noise(&head, 0.0005, &mut rng), 4, 0.10, &mut rng);
@@ -146,6 +149,7 @@ fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
             }
         };
         let (rot, scale, pos) = errors(&fit, &truth, &head);
+        closest_rival = closest_rival.min(fit.runner_up_mm.unwrap_or(f64::INFINITY));
         worst = (worst.0.max(rot), worst.1.max(scale), worst.2.max(pos), worst.3.max(fit.residual_mm));
         if rot > 1.0 || scale > 0.01 || pos > POSITION_TOL {
             failures.push(format!(
@@ -158,7 +162,8 @@ fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
         }
     }
     println!(
-        "50 frames in {:.1} s; worst: rotation {:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm",
+        "50 frames in {:.1} s; worst: rotation {:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm; \
+         closest rival pose {closest_rival:.2} mm",
         t0.elapsed().as_secs_f64(),
         worst.0,
         worst.1 * 100.0,

@@ -199,7 +199,7 @@ fn plane_step(pairs: &[(DVec3, Match)]) -> Option<Similarity> {
     let c = used.iter().map(|(x, _)| *x).sum::<DVec3>() / used.len() as f64;
     // Unit-free unknowns: lengths relative to the points' spread.
     let spread = (used.iter().map(|(x, _)| (*x - c).length_squared()).sum::<f64>() / used.len() as f64).sqrt();
-    if !(spread > 0.0) {
+    if spread.is_nan() || spread <= 0.0 {
         return None;
     }
     let mut a = SMatrix::<f64, 7, 7>::zeros();

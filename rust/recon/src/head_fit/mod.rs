@@ -223,8 +223,8 @@ pub fn fit_similarity(
         let samples = template::sample_surface(bvh.mesh(), |_| true, 4000, 0x5eed_b10b);
         let mut starts = Vec::new();
         for &f in &opts.fallback_scales {
-            // A head's skull fits in a ball of about 0.1 m about its centre: the template's radius
-            // of gyration at this scale.
+            // Mean shift with a ball of 1.2 × the template's radius of gyration at this scale
+            // (0.15 m on a real head), which holds the head's surface about its centre.
             let mut cs = coarse::blob_centres(&samples, 1.2 * f, 48, 3);
             if let Some((_, c)) = prior {
                 cs.push(c);

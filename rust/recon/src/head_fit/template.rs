@@ -26,7 +26,7 @@ impl SurfaceStats {
             area += w;
             first += w * (a + b + c) / 3.0;
         }
-        if !(area > 0.0) {
+        if area.is_nan() || area <= 0.0 {
             return None;
         }
         let centre = first / area;
@@ -82,7 +82,7 @@ pub(crate) fn sample_surface_normals(
             ids.push(i);
         }
     }
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
     let mut rng = Rng::new(seed);

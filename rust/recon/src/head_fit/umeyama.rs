@@ -36,7 +36,7 @@ pub fn umeyama(src: &[DVec3], dst: &[DVec3], with_scale: bool) -> Option<Similar
     }
     var_p *= inv_n;
     cov *= inv_n;
-    if !(var_p > 0.0) || !cov.iter().all(|v| v.is_finite()) {
+    if (var_p.is_nan() || var_p <= 0.0) || !cov.iter().all(|v| v.is_finite()) {
         return None;
     }
     let svd = cov.svd(true, true);
@@ -49,7 +49,7 @@ pub fn umeyama(src: &[DVec3], dst: &[DVec3], with_scale: bool) -> Option<Similar
     } else {
         1.0
     };
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return None;
     }
     let rotation = DMat3::from_cols(
