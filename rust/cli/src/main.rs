@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod cmd_fit_head;
 mod cmd_fuse;
 mod cmd_import;
 mod cmd_io;
@@ -39,6 +40,8 @@ enum Command {
     ToyAa(cmd_toy::ToyAaArgs),
     /// The letters demo of the supplement (3.2): grow letters from bundles of strands.
     ToyLetters(cmd_toy::ToyLettersArgs),
+    /// Fit the head template to a capture's raw mesh: the similarity to the canonical frame, as JSON.
+    FitHead(cmd_fit_head::FitHeadArgs),
     /// Reconstruct hair strands from a capture folder.
     Reconstruct(cmd_reconstruct::ReconstructArgs),
     /// Make a capture folder from a photogrammetry tool's calibration, photos and raw mesh.
@@ -56,6 +59,7 @@ fn main() {
         Command::FuseDepth(a) => cmd_fuse::run(a),
         Command::ToyAa(a) => cmd_toy::run_aa(a),
         Command::ToyLetters(a) => cmd_toy::run_letters(a),
+        Command::FitHead(a) => cmd_fit_head::run(a),
         Command::Reconstruct(a) => cmd_reconstruct::run(a),
         Command::Import(c) => cmd_import::run(c),
     };

@@ -3,6 +3,8 @@
 //! strands → strands optimized by differentiable rendering.
 //!
 //! The method, stage by stage (each module's doc names its reference):
+//! - [`head_fit`]: the similarity from a raw mesh's frame to the canonical one, by registering the head
+//!   template (coarse search, trimmed ICP).
 //! - [`orient2d`]: 2D orientation maps by a Gabor filter bank.
 //! - [`points3d`]: oriented 3D points by line-based MVS on the raw mesh ([`oriented_points`]).
 //! - [`parting`]: partings, where the views see the scalp's skin; S turns away from them.
@@ -31,6 +33,7 @@ pub mod dr;
 pub mod error;
 pub mod eval;
 pub mod grow;
+pub mod head_fit;
 pub mod hull;
 pub mod laplace;
 pub mod orient2d;

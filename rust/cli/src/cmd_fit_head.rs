@@ -1,0 +1,99 @@
+//! `hairrecon fit-head`: the similarity that takes a capture's raw mesh to the canonical frame
+//! (metres, Z up, the face toward −Y), by registering the head template to it
+//! (`hairrecon_recon::head_fit`). Prints it as JSON on stdout; the capture is not changed.
+//!
+//! The template: `--template`, else the repository's `blend_fixtures/head.ply`, found from where
+//! this program was built (`CARGO_MANIFEST_DIR/../../blend_fixtures`; a binary moved away from its
+//! source tree needs `--template`). Its scalp (the triangles the fit ignores, since hair hides them)
+//! is `--scalp`, else `scalp.ply` beside the template when it exists.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use hairrecon_core::capture::CaptureSpec;
+use hairrecon_recon::head_fit::{fit_similarity, FitOptions, HeadTemplate};
+use serde_json::json;
+
+use crate::CmdResult;
+
+#[derive(Debug, clap::Args)]
+pub struct FitHeadArgs {
+    /// Capture folder (or its capture.json): its raw mesh and its cameras are used.
+    pub capture: PathBuf,
+    /// Head template in the canonical frame (.ply or .obj). Default: the repository's
+    /// blend_fixtures/head.ply.
+    #[arg(long)]
+    pub template: Option<PathBuf>,
+    /// The template's scalp, left out of the fit. Default: scalp.ply beside the template, if any.
+    #[arg(long)]
+    pub scalp: Option<PathBuf>,
+    /// Ignore the cameras (fit from the mesh alone).
+    #[arg(long)]
+    pub no_cameras: bool,
+    /// Template points used by the fit.
+    #[arg(long, default_value_t = 2000)]
+    pub samples: usize,
+    /// Fail when the trimmed RMS residual exceeds this (canonical millimetres).
+    #[arg(long, default_value_t = FitOptions::default().max_residual_mm)]
+    pub max_residual_mm: f64,
+}
+
+/// The repository's head template, from where this program was built.
+pub fn default_template() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures/head.ply")
+}
+
+pub fn run(args: FitHeadArgs) -> CmdResult {
+    let t0 = Instant::now();
+    let json_path = if args.capture.is_dir() { args.capture.join("capture.json") } else { args.capture.clone() };
+    let text = std::fs::read_to_string(&json_path).map_err(|e| format!("cannot read {}: {e}", json_path.display()))?;
+    let spec = CaptureSpec::from_json(serde_json::from_str(&text)?, &json_path)?;
+    let cameras = spec.validate(&json_path)?;
+    let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let raw_path = dir.join(&spec.raw_mesh);
+    let raw = hairrecon_core::read_mesh(&raw_path)?;
+
+    let template_path = args.template.clone().unwrap_or_else(default_template);
+    let head = hairrecon_core::read_mesh(&template_path).map_err(|e| {
+        format!("cannot read the head template {}: {e}; give one with --template", template_path.display())
+    })?;
+    let scalp_path = args.scalp.clone().or_else(|| {
+        let p = template_path.with_file_name("scalp.ply");
+        p.is_file().then_some(p)
+    });
+    let scalp = scalp_path.as_ref().map(hairrecon_core::read_mesh).transpose()?;
+    let template = HeadTemplate::new(&head, scalp.as_ref(), args.samples, 7)
+        .ok_or_else(|| format!("the head template {} has no area outside its scalp", template_path.display()))?;
+
+    let opts = FitOptions { max_residual_mm: args.max_residual_mm, ..FitOptions::default() };
+    let cams = (!args.no_cameras).then_some(cameras.as_slice());
+    let fit = fit_similarity(&template, &raw, cams, &opts)?;
+    let s = fit.to_canonical;
+    let (axis, degrees) = s.axis_angle_degrees();
+    let rows = |m: glam::DMat3| {
+        let t = m.transpose();
+        [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+    };
+    let out = json!({
+        "raw_mesh": raw_path,
+        "template": template_path,
+        "scalp": scalp_path,
+        "units": spec.units,
+        "frame": spec.frame.as_deref().unwrap_or("canonical"),
+        "to_canonical": {
+            "scale": s.scale,
+            "rotation_axis": axis.to_array(),
+            "rotation_degrees": degrees,
+            "rotation_matrix": rows(s.rotation),
+            "translation": s.translation.to_array(),
+        },
+        "residual_mm": fit.residual_mm,
+        "inlier_fraction": fit.inlier_fraction,
+        "runner_up_mm": fit.runner_up_mm,
+        "used_fallback": fit.used_fallback,
+        "cameras_given": cams.map_or(0, <[_]>::len),
+        "seconds": t0.elapsed().as_secs_f64(),
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}

@@ -1,0 +1,230 @@
+//! Trimmed ICP (Chetverikov et al., "The Trimmed Iterative Closest Point algorithm", ICPR 2002),
+//! for a similarity.
+//!
+//! Each iteration maps the template's points by the current similarity, finds each one's closest
+//! point on the raw mesh (exact, through core's [`Bvh`]), keeps the `keep` fraction with the
+//! smallest distances (holes, a cut-off crown, hair over the scalp and clothes make the rest), and
+//! solves a new similarity from the kept pairs:
+//! - point to point ([`IcpMetric::Point`]): in closed form (Umeyama, PAMI 1991); robust from far,
+//!   slow to settle (the points slide along the surface);
+//! - point to plane ([`IcpMetric::Plane`]): the distances along the closest triangle's normal,
+//!   linearised in a small rotation, scale change and translation about the kept points' centre
+//!   (Chen & Medioni, "Object modelling by registration of multiple range images", 1992, with a
+//!   scale): a 7 × 7 normal-equation solve, converging in a few iterations once near.
+//!
+//! The residual is the kept pairs' RMS distance divided by the similarity's scale: a length in the
+//! template's frame, whatever the raw mesh's scale.
+
+use glam::{DMat3, DVec3};
+use hairrecon_core::Bvh;
+use rayon::prelude::*;
+
+use super::umeyama::umeyama;
+use super::Similarity;
+
+/// What an ICP step minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IcpMetric {
+    /// Point-to-point distances, solved in closed form.
+    Point,
+    /// Point-to-plane distances, linearised.
+    Plane,
+}
+
+/// The parameters of one ICP run.
+#[derive(Debug, Clone, Copy)]
+pub struct IcpOptions {
+    pub metric: IcpMetric,
+    /// At most this many iterations.
+    pub iterations: usize,
+    /// The fraction of pairs kept (the rest, the farthest, are trimmed), in (0, 1].
+    pub keep: f64,
+    /// Stop when an iteration moves no template point by more than this (template frame units).
+    pub tolerance: f64,
+    /// Query the mesh in parallel (for one long run; off when many runs go in parallel).
+    pub parallel: bool,
+}
+
+/// What an ICP run ends with.
+#[derive(Debug, Clone, Copy)]
+pub struct IcpOutcome {
+    /// Template frame → raw frame.
+    pub transform: Similarity,
+    /// Trimmed RMS distance in the template's frame.
+    pub residual: f64,
+    /// Iterations run.
+    pub iterations: usize,
+}
+
+/// A template point's match: its closest point on the mesh, the triangle's normal and the distance.
+#[derive(Debug, Clone, Copy)]
+pub struct Match {
+    pub point: DVec3,
+    pub normal: DVec3,
+    pub distance: f64,
+}
+
+/// What ICP registers to: a surface that answers closest-point queries.
+pub trait Target: Sync {
+    /// The closest point to `p` within `cap` (beyond: `p` itself, no normal, `cap` away).
+    fn closest(&self, p: DVec3, cap: f64) -> Match;
+}
+
+/// A mesh: exact closest points on its triangles, with the triangle's normal.
+impl Target for Bvh {
+    #[inline]
+    fn closest(&self, p: DVec3, cap: f64) -> Match {
+        match self.closest_point(p.as_vec3(), cap as f32) {
+            Some(c) => Match {
+                point: c.point.as_dvec3(),
+                normal: self.mesh().face_normal(c.triangle as usize).as_dvec3(),
+                distance: (c.point.as_dvec3() - p).length(),
+            },
+            None => Match { point: p, normal: DVec3::ZERO, distance: cap },
+        }
+    }
+}
+
+/// A dense sample of a surface (points with normals) in a kd-tree: the nearest sample point and
+/// its normal. Several times faster than exact closest points, for the coarse search.
+#[derive(Debug)]
+pub struct SurfaceSamples {
+    points: Vec<(DVec3, DVec3)>,
+    tree: kiddo::ImmutableKdTree<f32, 3>,
+}
+
+impl SurfaceSamples {
+    /// The kd-tree of `points` (position, unit normal; at least one).
+    pub fn new(points: Vec<(DVec3, DVec3)>) -> Self {
+        let arr: Vec<[f32; 3]> = points.iter().map(|p| p.0.as_vec3().to_array()).collect();
+        let tree = kiddo::ImmutableKdTree::new_from_slice(&arr);
+        Self { points, tree }
+    }
+}
+
+impl Target for SurfaceSamples {
+    #[inline]
+    fn closest(&self, p: DVec3, cap: f64) -> Match {
+        let n = self.tree.nearest_one::<kiddo::SquaredEuclidean>(&p.as_vec3().to_array());
+        let (q, normal) = self.points[n.item as usize];
+        let distance = (q - p).length();
+        if distance <= cap {
+            Match { point: q, normal, distance }
+        } else {
+            Match { point: p, normal: DVec3::ZERO, distance: cap }
+        }
+    }
+}
+
+/// Each point's match (distances capped at `cap`) after mapping by `t`.
+pub(crate) fn match_points<T: Target + ?Sized>(
+    points: &[DVec3],
+    t: &Similarity,
+    target: &T,
+    cap: f64,
+    parallel: bool,
+) -> Vec<Match> {
+    let one = |p: &DVec3| target.closest(t.apply(*p), cap);
+    if parallel {
+        points.par_iter().map(one).collect()
+    } else {
+        points.iter().map(one).collect()
+    }
+}
+
+/// The trimmed RMS of distances: the `keep` fraction of smallest ones. Reorders `d`.
+pub(crate) fn trimmed_rms(d: &mut [f64], keep: f64) -> f64 {
+    let k = kept(d.len(), keep);
+    if k < d.len() {
+        d.select_nth_unstable_by(k, f64::total_cmp);
+    }
+    (d[..k].iter().map(|x| x * x).sum::<f64>() / k as f64).sqrt()
+}
+
+fn kept(n: usize, keep: f64) -> usize {
+    ((n as f64 * keep).round() as usize).clamp(3.min(n), n)
+}
+
+/// Trimmed ICP of `points` (template frame) onto `target` from `init` (template → raw). `cap`
+/// bounds the closest-point search (raw frame units); farther points count as `cap` away.
+/// Point-to-plane needs a target with normals (a [`Bvh`]).
+pub fn trimmed_icp<T: Target + ?Sized>(
+    points: &[DVec3],
+    target: &T,
+    init: Similarity,
+    cap: f64,
+    opts: &IcpOptions,
+) -> IcpOutcome {
+    let mut t = init;
+    let mut residual = f64::INFINITY;
+    let mut iterations = 0;
+    let k = kept(points.len(), opts.keep);
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    for it in 0..opts.iterations {
+        iterations = it + 1;
+        let m = match_points(points, &t, target, cap, opts.parallel);
+        order.sort_unstable_by(|&a, &b| m[a].distance.total_cmp(&m[b].distance).then(a.cmp(&b)));
+        let sel = &order[..k];
+        residual = (sel.iter().map(|&i| m[i].distance * m[i].distance).sum::<f64>() / k as f64).sqrt() / t.scale;
+        let src: Vec<DVec3> = sel.iter().map(|&i| points[i]).collect();
+        let next = match opts.metric {
+            IcpMetric::Point => {
+                let dst: Vec<DVec3> = sel.iter().map(|&i| m[i].point).collect();
+                umeyama(&src, &dst, true)
+            }
+            IcpMetric::Plane => {
+                let pairs: Vec<(DVec3, Match)> = sel.iter().map(|&i| (t.apply(points[i]), m[i])).collect();
+                plane_step(&pairs).map(|inc| inc.then_after(&t))
+            }
+        };
+        let Some(next) = next else { break };
+        let moved = src.iter().map(|&p| (next.apply(p) - t.apply(p)).length()).fold(0.0, f64::max) / t.scale;
+        t = next;
+        if moved < opts.tolerance {
+            break;
+        }
+    }
+    IcpOutcome { transform: t, residual, iterations }
+}
+
+/// One point-to-plane step: the small similarity (about the points' centre) that best moves each
+/// mapped point `x` onto the plane of its match, Σ (n · (x′ − q))², linearised in the rotation
+/// vector ω, the log-scale σ and the translation τ. `None` when the system is singular.
+fn plane_step(pairs: &[(DVec3, Match)]) -> Option<Similarity> {
+    use nalgebra::{SMatrix, SVector};
+    let used: Vec<&(DVec3, Match)> = pairs.iter().filter(|(_, m)| m.normal != DVec3::ZERO).collect();
+    if used.len() < 7 {
+        return None;
+    }
+    let c = used.iter().map(|(x, _)| *x).sum::<DVec3>() / used.len() as f64;
+    // Unit-free unknowns: lengths relative to the points' spread.
+    let spread = (used.iter().map(|(x, _)| (*x - c).length_squared()).sum::<f64>() / used.len() as f64).sqrt();
+    if spread.is_nan() || spread <= 0.0 {
+        return None;
+    }
+    let mut a = SMatrix::<f64, 7, 7>::zeros();
+    let mut b = SVector::<f64, 7>::zeros();
+    for (x, m) in used {
+        let d = (*x - c) / spread;
+        let n = m.normal;
+        let cr = d.cross(n);
+        let j = SVector::<f64, 7>::from_column_slice(&[cr.x, cr.y, cr.z, d.dot(n), n.x, n.y, n.z]);
+        let r = n.dot(*x - m.point) / spread;
+        a += j * j.transpose();
+        b -= j * r;
+    }
+    let sol = a.cholesky()?.solve(&b);
+    if !sol.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let omega = DVec3::new(sol[0], sol[1], sol[2]);
+    let rotation = if omega.length() > 1e-15 {
+        DMat3::from_axis_angle(omega.normalize(), omega.length())
+    } else {
+        DMat3::IDENTITY
+    };
+    let scale = sol[3].exp();
+    let tau = DVec3::new(sol[4], sol[5], sol[6]) * spread;
+    // y ↦ scale · R (y − c) + c + τ.
+    Some(Similarity { scale, rotation, translation: c + tau - scale * (rotation * c) })
+}

@@ -1,0 +1,356 @@
+//! Head fitting, first part: the similarity (scale, rotation, translation) that takes a raw mesh
+//! in a photogrammetry tool's frame to the canonical frame (metres, Z up, the face toward −Y), by
+//! registering the bundled head template to it, without landmarks or a learned model.
+//!
+//! Method:
+//! 1. Normalise the raw mesh by its surface centre and radius of gyration (conditioning: any
+//!    scale and offset become unit size at the origin) and build one [`Bvh`] on it.
+//! 2. Coarse search ([`coarse`]): initial poses from the scale prior (the template's radius of
+//!    gyration against the raw mesh's), a centre, and a near-uniform set of rotations of SO(3)
+//!    (with cameras, a ring about their mean up vector first); each refined by a few iterations of
+//!    trimmed ICP on a small sample of the template's skin, ranked by its trimmed residual.
+//! 3. The best few refined fully by trimmed ICP ([`icp`]) on all samples, each step solved in
+//!    closed form ([`umeyama`]: Umeyama, "Least-squares estimation of transformation parameters
+//!    between two point patterns", PAMI 1991); the lowest trimmed residual wins.
+//! 4. If that residual is too high (a backdrop or a torso made the scale and centre priors wrong),
+//!    the search repeats over a ladder of smaller scales and the places where the surface is
+//!    densest at a head's size. A fit whose residual stays too high is an error that says so.
+//!
+//! The template points (template → raw closest points, never the other way) make the fit blind to
+//! what the raw mesh has beyond the head: hair, shoulders, a chair. Trimming ignores what the
+//! template has beyond the raw mesh: holes, a missing crown, the scalp under hair.
+
+pub mod coarse;
+pub mod icp;
+pub mod template;
+pub mod umeyama;
+
+use glam::{DMat3, DQuat, DVec3, Vec3};
+use hairrecon_core::{Bvh, Camera, TriMesh};
+use rayon::prelude::*;
+use thiserror::Error;
+
+pub use icp::{trimmed_icp, IcpMetric, IcpOptions, IcpOutcome, SurfaceSamples, Target};
+pub use template::{HeadTemplate, SurfaceStats};
+
+/// `x ↦ scale · rotation · x + translation`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Similarity {
+    pub scale: f64,
+    pub rotation: DMat3,
+    pub translation: DVec3,
+}
+
+impl Similarity {
+    pub const IDENTITY: Self = Self { scale: 1.0, rotation: DMat3::IDENTITY, translation: DVec3::ZERO };
+
+    /// Maps a point.
+    #[inline]
+    pub fn apply(&self, p: DVec3) -> DVec3 {
+        self.scale * (self.rotation * p) + self.translation
+    }
+
+    /// The inverse map.
+    pub fn inverse(&self) -> Self {
+        let rt = self.rotation.transpose();
+        Self { scale: 1.0 / self.scale, rotation: rt, translation: -(rt * self.translation) / self.scale }
+    }
+
+    /// `self ∘ other`: `other` first.
+    pub fn then_after(&self, other: &Self) -> Self {
+        Self {
+            scale: self.scale * other.scale,
+            rotation: self.rotation * other.rotation,
+            translation: self.apply(other.translation),
+        }
+    }
+
+    /// The rotation as a unit axis and an angle in degrees (axis +Z for no rotation).
+    pub fn axis_angle_degrees(&self) -> (DVec3, f64) {
+        let (axis, angle) = DQuat::from_mat3(&self.rotation).normalize().to_axis_angle();
+        if angle.abs() < 1e-12 {
+            (DVec3::Z, 0.0)
+        } else {
+            (axis, angle.to_degrees())
+        }
+    }
+
+    /// The angle of the rotation that takes `self`'s rotation to `other`'s, in degrees.
+    pub fn rotation_angle_to(&self, other: &Self) -> f64 {
+        let m = self.rotation.transpose() * other.rotation;
+        ((m.x_axis.x + m.y_axis.y + m.z_axis.z - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    }
+}
+
+/// The parameters of [`fit_similarity`]. Lengths in millimetres are in the canonical frame.
+#[derive(Debug, Clone)]
+pub struct FitOptions {
+    /// Rotations of the coarse search (a super-Fibonacci set of SO(3)).
+    pub rotations: usize,
+    /// Template points each coarse candidate is refined with.
+    pub coarse_points: usize,
+    /// Raw-surface points the coarse search registers to (nearest points in a kd-tree).
+    pub coarse_samples: usize,
+    /// ICP iterations per coarse candidate.
+    pub coarse_iterations: usize,
+    /// The best coarse candidates refined fully.
+    pub refine_best: usize,
+    /// ICP iterations of a full refinement, at most.
+    pub refine_iterations: usize,
+    /// The fraction of template points that count (the rest, the farthest, are trimmed).
+    pub keep: f64,
+    /// A fit whose trimmed RMS residual exceeds this fails.
+    pub max_residual_mm: f64,
+    /// A template point within this of the raw mesh is an inlier.
+    pub inlier_mm: f64,
+    /// A fit with a smaller fraction of inliers fails.
+    pub min_inlier_fraction: f64,
+    /// The scales tried, as fractions of the scale prior, when the first search fails (for raw
+    /// meshes with much more than the head: shoulders, a backdrop).
+    pub fallback_scales: Vec<f64>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            rotations: 240,
+            coarse_points: 120,
+            coarse_samples: 20_000,
+            coarse_iterations: 8,
+            refine_best: 3,
+            refine_iterations: 30,
+            keep: 0.7,
+            max_residual_mm: 4.0,
+            inlier_mm: 3.0,
+            min_inlier_fraction: 0.5,
+            fallback_scales: vec![1.0, 0.7, 0.5, 0.35, 0.25],
+        }
+    }
+}
+
+/// A fitted similarity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitResult {
+    /// Raw-mesh coordinates → canonical frame (metres).
+    pub to_canonical: Similarity,
+    /// Trimmed RMS distance of the template's skin points to the raw mesh, canonical mm.
+    pub residual_mm: f64,
+    /// The fraction of template points within [`FitOptions::inlier_mm`] of the raw mesh.
+    pub inlier_fraction: f64,
+    /// The best residual of a refined pose whose rotation differs from the winner's by more than
+    /// 30° (how clearly the winner won; `None` when every refined pose agreed).
+    pub runner_up_mm: Option<f64>,
+    /// Whether the fallback search (smaller scales, densest places) was needed.
+    pub used_fallback: bool,
+}
+
+/// Why no similarity was found.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum FitError {
+    #[error("the raw mesh has no area; give the capture's surface mesh")]
+    EmptyRaw,
+    #[error("the head template has no area or no skin outside its scalp; give the bundled head.ply")]
+    EmptyTemplate,
+    #[error(
+        "the head template does not fit the raw mesh: best trimmed residual {residual_mm:.1} mm with \
+         {inliers:.0}% of template points within {inlier_mm} mm (a fit needs at most {max_residual_mm} mm and \
+         {min_inliers:.0}%); check that the mesh shows the head (face, ears, neck) and is not cut to the hair \
+         only, or give landmarks"
+    )]
+    Poor { residual_mm: f64, inliers: f64, inlier_mm: f64, max_residual_mm: f64, min_inliers: f64 },
+}
+
+/// A refined candidate.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    /// Template → normalised raw.
+    t: Similarity,
+    residual: f64,
+}
+
+/// The similarity from the raw mesh's frame to the template's (canonical) one. `cameras`, in the
+/// raw mesh's frame, are optional: their up vectors and the point they look at come first in the
+/// search. Deterministic for given inputs.
+pub fn fit_similarity(
+    template: &HeadTemplate,
+    raw: &TriMesh,
+    cameras: Option<&[Camera]>,
+    opts: &FitOptions,
+) -> Result<FitResult, FitError> {
+    if template.points.len() < 3 {
+        return Err(FitError::EmptyTemplate);
+    }
+    let raw_stats = SurfaceStats::of(raw).ok_or(FitError::EmptyRaw)?;
+    // raw → normalised raw, unit radius at the origin.
+    let norm = Similarity {
+        scale: 1.0 / raw_stats.radius,
+        rotation: DMat3::IDENTITY,
+        translation: -raw_stats.centre / raw_stats.radius,
+    };
+    let normalised = TriMesh {
+        vertices: raw.vertices.iter().map(|v| norm.apply(v.as_dvec3()).as_vec3()).collect(),
+        triangles: raw.triangles.clone(),
+        normals: None,
+        uvs: None,
+    };
+    let bvh = Bvh::new(normalised);
+    let cloud =
+        SurfaceSamples::new(template::sample_surface_normals(bvh.mesh(), |_| true, opts.coarse_samples, 0x5eed_c10d));
+    let prior = cameras.and_then(coarse::camera_prior).map(|(up, c)| (up, norm.apply(c)));
+
+    let tstats = template.stats;
+    // Template → normalised raw with the template's centre at `centre` and scale ratio `f`.
+    let pose = |rot: DMat3, centre: DVec3, f: f64| {
+        let scale = f / tstats.radius;
+        Similarity { scale, rotation: rot, translation: centre - scale * (rot * tstats.centre) }
+    };
+    let mut rotations = Vec::new();
+    if let Some((up, _)) = prior {
+        rotations.extend(coarse::up_ring(up, 24, 20f64.to_radians()));
+    }
+    rotations.extend(coarse::rotation_grid(opts.rotations));
+    let mut centres = vec![DVec3::ZERO];
+    if let Some((_, c)) = prior {
+        centres.push(c);
+    }
+    let starts: Vec<Similarity> =
+        centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
+    let (mut best, mut runner_up) = search(template, &bvh, &cloud, &starts, opts);
+    let mut used_fallback = false;
+    let mut stats = evaluate(template, &bvh, &best.t, opts);
+    if !acceptable(&stats, opts) {
+        used_fallback = true;
+        let samples = template::sample_surface(bvh.mesh(), |_| true, 4000, 0x5eed_b10b);
+        let mut starts = Vec::new();
+        for &f in &opts.fallback_scales {
+            // Mean shift with a ball of 1.2 × the template's radius of gyration at this scale
+            // (0.15 m on a real head), which holds the head's surface about its centre.
+            let mut cs = coarse::blob_centres(&samples, 1.2 * f, 48, 3);
+            if let Some((_, c)) = prior {
+                cs.push(c);
+            }
+            for c in cs {
+                starts.extend(rotations.iter().map(|&r| pose(r, c, f)));
+            }
+        }
+        let (b, r) = search(template, &bvh, &cloud, &starts, opts);
+        let s = evaluate(template, &bvh, &b.t, opts);
+        if s.0 < stats.0 {
+            (best, runner_up, stats) = (b, r, s);
+        }
+    }
+    let (residual_mm, inlier_fraction) = stats;
+    if !acceptable(&stats, opts) {
+        return Err(FitError::Poor {
+            residual_mm,
+            inliers: 100.0 * inlier_fraction,
+            inlier_mm: opts.inlier_mm,
+            max_residual_mm: opts.max_residual_mm,
+            min_inliers: 100.0 * opts.min_inlier_fraction,
+        });
+    }
+    // canonical → normalised raw → raw; inverted.
+    let to_raw = norm.inverse().then_after(&best.t);
+    Ok(FitResult {
+        to_canonical: to_raw.inverse(),
+        residual_mm,
+        inlier_fraction,
+        runner_up_mm: runner_up.map(|c| c.residual * 1e3),
+        used_fallback,
+    })
+}
+
+fn acceptable(stats: &(f64, f64), opts: &FitOptions) -> bool {
+    stats.0 <= opts.max_residual_mm && stats.1 >= opts.min_inlier_fraction
+}
+
+/// Trimmed residual (canonical mm) and inlier fraction of a pose on all template points.
+fn evaluate(template: &HeadTemplate, bvh: &Bvh, t: &Similarity, opts: &FitOptions) -> (f64, f64) {
+    let cap = 0.5 * t.scale * template.stats.radius;
+    let mut d: Vec<f64> =
+        icp::match_points(&template.points, t, bvh, cap, true).into_iter().map(|m| m.distance / t.scale).collect();
+    let inliers = d.iter().filter(|&&x| x * 1e3 <= opts.inlier_mm).count() as f64 / d.len() as f64;
+    (icp::trimmed_rms(&mut d, opts.keep) * 1e3, inliers)
+}
+
+/// Brief ICP from every start (in parallel), then full ICP from the best few; the best and the best
+/// whose rotation differs from it by more than 30°.
+fn search(
+    template: &HeadTemplate,
+    bvh: &Bvh,
+    cloud: &SurfaceSamples,
+    starts: &[Similarity],
+    opts: &FitOptions,
+) -> (Candidate, Option<Candidate>) {
+    let cap_of = |t: &Similarity| 0.5 * t.scale * template.stats.radius;
+    // Brief point-to-plane ICP on the surface samples from each start, in parallel, ranked by
+    // residual (ties by start, for determinism).
+    let brief = |starts: &[(usize, Similarity)], points: usize, iterations: usize| {
+        let pts = &template.points[..points.clamp(3, template.points.len())];
+        let o = IcpOptions { metric: IcpMetric::Plane, iterations, keep: opts.keep, tolerance: 0.0, parallel: false };
+        let mut out: Vec<(usize, Candidate)> = starts
+            .par_iter()
+            .map(|&(i, s)| {
+                let r = trimmed_icp(pts, cloud, s, cap_of(&s), &o);
+                (i, Candidate { t: r.transform, residual: r.residual })
+            })
+            .collect();
+        out.sort_by(|a, b| a.1.residual.total_cmp(&b.1.residual).then(a.0.cmp(&b.0)));
+        out
+    };
+    // Every start briefly on half the points; the most promising quarter on to convergence.
+    let all: Vec<(usize, Similarity)> = starts.iter().copied().enumerate().collect();
+    let first = brief(&all, opts.coarse_points / 2, opts.coarse_iterations / 2);
+    let promising: Vec<(usize, Similarity)> =
+        first.iter().take(first.len().div_ceil(4).max(opts.refine_best)).map(|(i, c)| (*i, c.t)).collect();
+    let coarse = brief(&promising, opts.coarse_points, opts.coarse_iterations);
+    // The best few, distinct in rotation (near-duplicates converge to the same pose).
+    let mut picked: Vec<Candidate> = Vec::new();
+    for (_, c) in &coarse {
+        if picked.len() >= opts.refine_best.max(1) {
+            break;
+        }
+        if picked.iter().all(|p| p.t.rotation_angle_to(&c.t) > 10.0 || (p.t.scale / c.t.scale).ln().abs() > 0.1) {
+            picked.push(*c);
+        }
+    }
+    // The picked few on the mesh itself with more points, then the best of them on all points.
+    let mid_pts = &template.points[..(4 * opts.coarse_points).clamp(3, template.points.len())];
+    let plane = IcpOptions {
+        metric: IcpMetric::Plane,
+        iterations: opts.refine_iterations,
+        keep: opts.keep,
+        tolerance: 1e-6,
+        parallel: false,
+    };
+    let mut refined: Vec<Candidate> = picked
+        .par_iter()
+        .map(|c| {
+            let o = trimmed_icp(mid_pts, bvh, c.t, cap_of(&c.t), &IcpOptions { tolerance: 1e-5, ..plane });
+            Candidate { t: o.transform, residual: o.residual }
+        })
+        .collect();
+    refined.sort_by(|a, b| a.residual.total_cmp(&b.residual));
+    let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
+    let o = trimmed_icp(
+        &template.points,
+        bvh,
+        refined[0].t,
+        cap_of(&refined[0].t),
+        &IcpOptions { tolerance: 1e-7, parallel: true, ..plane },
+    );
+    let best = Candidate { t: o.transform, residual: o.residual };
+    (best, runner_up)
+}
+
+/// Maps a mesh's vertices by a similarity (f64 inside), normals rotated; for callers that move a
+/// raw mesh into the canonical frame.
+pub fn transform_mesh(mesh: &TriMesh, s: &Similarity) -> TriMesh {
+    let rot = s.rotation.as_mat3();
+    TriMesh {
+        vertices: mesh.vertices.iter().map(|v| s.apply(v.as_dvec3()).as_vec3()).collect(),
+        triangles: mesh.triangles.clone(),
+        normals: mesh.normals.as_ref().map(|n| n.iter().map(|&v: &Vec3| (rot * v).normalize_or_zero()).collect()),
+        uvs: mesh.uvs.clone(),
+    }
+}

@@ -1,0 +1,308 @@
+//! Head fitting, the similarity: the bundled head moved into random similarity frames, with noise
+//! and holes, a cut-off crown, a torso and backdrop beside it; and a mesh that is not a head.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use glam::{DMat3, DQuat, DVec3, Vec3};
+use hairrecon_core::formats::read_mesh;
+use hairrecon_core::TriMesh;
+use hairrecon_recon::head_fit::{fit_similarity, FitError, FitOptions, FitResult, HeadTemplate, Similarity};
+
+fn fixture(name: &str) -> TriMesh {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures").join(name);
+    read_mesh(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+fn template(head: &TriMesh) -> HeadTemplate {
+    HeadTemplate::new(head, Some(&fixture("scalp.ply")), 2000, 7).unwrap()
+}
+
+/// SplitMix64.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    fn f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn gauss(&mut self) -> f64 {
+        let (u, v) = (self.f64().max(1e-300), self.f64());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+/// A random similarity: rotation uniform on SO(3), scale log-uniform in 0.01..100, offset up to
+/// 10 × scale per axis.
+fn random_similarity(rng: &mut Rng) -> Similarity {
+    let q = DQuat::from_xyzw(rng.gauss(), rng.gauss(), rng.gauss(), rng.gauss()).normalize();
+    let scale = 10f64.powf(rng.f64() * 4.0 - 2.0);
+    let translation = DVec3::new(rng.f64() * 2.0 - 1.0, rng.f64() * 2.0 - 1.0, rng.f64() * 2.0 - 1.0) * 10.0 * scale;
+    Similarity { scale, rotation: DMat3::from_quat(q), translation }
+}
+
+/// The mesh without the triangles nearest to `holes` random surface points, `fraction` of its area
+/// in all (balls of one radius grown together).
+fn punch_holes(mesh: &TriMesh, holes: usize, fraction: f64, rng: &mut Rng) -> TriMesh {
+    let area: Vec<f64> = (0..mesh.triangles.len()).map(|i| mesh.face_area(i) as f64).collect();
+    let total: f64 = area.iter().sum();
+    let centroid = |i: usize| {
+        let [a, b, c] = mesh.corners(i);
+        ((a + b + c) / 3.0).as_dvec3()
+    };
+    let centres: Vec<DVec3> = (0..holes)
+        .map(|_| {
+            let mut x = rng.f64() * total;
+            let mut i = 0;
+            while x > area[i] && i + 1 < area.len() {
+                x -= area[i];
+                i += 1;
+            }
+            centroid(i)
+        })
+        .collect();
+    let dist: Vec<f64> = (0..mesh.triangles.len())
+        .map(|i| centres.iter().map(|c| (centroid(i) - *c).length()).fold(f64::INFINITY, f64::min))
+        .collect();
+    let mut order: Vec<usize> = (0..mesh.triangles.len()).collect();
+    order.sort_by(|&a, &b| dist[a].total_cmp(&dist[b]));
+    let mut removed = vec![false; mesh.triangles.len()];
+    let mut gone = 0.0;
+    for i in order {
+        if gone >= fraction * total {
+            break;
+        }
+        removed[i] = true;
+        gone += area[i];
+    }
+    let triangles = mesh.triangles.iter().enumerate().filter(|(i, _)| !removed[*i]).map(|(_, t)| *t).collect();
+    TriMesh::new(mesh.vertices.clone(), triangles, None, None).unwrap()
+}
+
+/// Gaussian noise of `sigma` (metres) on every vertex.
+fn add_noise(mesh: &TriMesh, sigma: f64, rng: &mut Rng) -> TriMesh {
+    let vertices = mesh
+        .vertices
+        .iter()
+        .map(|v| *v + (DVec3::new(rng.gauss(), rng.gauss(), rng.gauss()) * sigma).as_vec3())
+        .collect();
+    TriMesh::new(vertices, mesh.triangles.clone(), None, None).unwrap()
+}
+
+fn moved(mesh: &TriMesh, s: &Similarity) -> TriMesh {
+    let vertices = mesh.vertices.iter().map(|v| s.apply(v.as_dvec3()).as_vec3()).collect();
+    TriMesh::new(vertices, mesh.triangles.clone(), None, None).unwrap()
+}
+
+/// Errors of a fit against the truth (canonical → raw): rotation (degrees), scale (relative),
+/// position (the largest displacement of the head's box corners in the canonical frame, metres).
+fn errors(fit: &FitResult, truth: &Similarity, head: &TriMesh) -> (f64, f64, f64) {
+    let want = truth.inverse();
+    let got = fit.to_canonical;
+    let rot = want.rotation_angle_to(&got);
+    let scale = (got.scale / want.scale - 1.0).abs();
+    let (lo, hi) = head.bbox();
+    let pos = (0..8)
+        .map(|k| {
+            let p = DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x } as f64,
+                if k & 2 == 0 { lo.y } else { hi.y } as f64,
+                if k & 4 == 0 { lo.z } else { hi.z } as f64,
+            );
+            (got.apply(truth.apply(p)) - p).length()
+        })
+        .fold(0.0, f64::max);
+    (rot, scale, pos)
+}
+
+/// The head is 0.155 m wide: 1% of it.
+const POSITION_TOL: f64 = 0.00155;
+
+#[test]
+fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
+    let head = fixture("head.ply");
+    let tpl = template(&head);
+    let opts = FitOptions::default();
+    let mut rng = Rng(0x00c0_ffee);
+    let t0 = Instant::now();
+    let mut worst = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let mut failures = Vec::new();
+    // The lowest residual of a refined pose more than 30° from the winner (a face/back or top/bottom
+    // confusion would show here).
+    let mut closest_rival = f64::INFINITY;
+    for case in 0..50 {
+        let truth = random_similarity(&mut rng);
+        let raw = punch_holes(&add_noise(&head, 0.0005, &mut rng), 4, 0.10, &mut rng);
+        let raw = moved(&raw, &truth);
+        let fit = fit_similarity(&tpl, &raw, None, &opts);
+        let fit = match fit {
+            Ok(f) => f,
+            Err(e) => {
+                failures.push(format!("case {case} (scale {:.3}): {e}", truth.scale));
+                continue;
+            }
+        };
+        let (rot, scale, pos) = errors(&fit, &truth, &head);
+        closest_rival = closest_rival.min(fit.runner_up_mm.unwrap_or(f64::INFINITY));
+        worst = (worst.0.max(rot), worst.1.max(scale), worst.2.max(pos), worst.3.max(fit.residual_mm));
+        if rot > 1.0 || scale > 0.01 || pos > POSITION_TOL {
+            failures.push(format!(
+                "case {case} (scale {:.3}): rotation {rot:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm",
+                truth.scale,
+                scale * 100.0,
+                pos * 1e3,
+                fit.residual_mm
+            ));
+        }
+    }
+    println!(
+        "50 frames in {:.1} s; worst: rotation {:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm; \
+         closest rival pose {closest_rival:.2} mm",
+        t0.elapsed().as_secs_f64(),
+        worst.0,
+        worst.1 * 100.0,
+        worst.2 * 1e3,
+        worst.3
+    );
+    assert!(failures.is_empty(), "{} of 50 failed:\n{}", failures.len(), failures.join("\n"));
+}
+
+/// Fits `raw` (the canonical head changed somehow) moved by a fixed similarity; returns the errors.
+fn fit_moved(raw: &TriMesh, head: &TriMesh, seed: u64) -> Result<(f64, f64, f64, FitResult), FitError> {
+    let mut rng = Rng(seed);
+    let truth = random_similarity(&mut rng);
+    let raw = moved(&add_noise(raw, 0.0005, &mut rng), &truth);
+    let fit = fit_similarity(&template(head), &raw, None, &FitOptions::default())?;
+    let (rot, scale, pos) = errors(&fit, &truth, head);
+    println!(
+        "rotation {rot:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm, inliers {:.0}%, runner-up {:?} mm, \
+         fallback {}",
+        scale * 100.0,
+        pos * 1e3,
+        fit.residual_mm,
+        fit.inlier_fraction * 100.0,
+        fit.runner_up_mm,
+        fit.used_fallback
+    );
+    Ok((rot, scale, pos, fit))
+}
+
+#[test]
+fn fits_a_head_whose_crown_is_missing() {
+    let head = fixture("head.ply");
+    let (lo, hi) = head.bbox();
+    let cut = hi.z - 0.2 * (hi.z - lo.z);
+    let triangles = (0..head.triangles.len())
+        .filter(|&i| head.corners(i).iter().map(|c| c.z).sum::<f32>() / 3.0 < cut)
+        .map(|i| head.triangles[i])
+        .collect();
+    let raw = TriMesh::new(head.vertices.clone(), triangles, None, None).unwrap();
+    let (rot, scale, pos, _) = fit_moved(&raw, &head, 11).unwrap();
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}
+
+/// A box from `lo` to `hi`, each face split into `n` × `n` quads.
+fn boxed(lo: Vec3, hi: Vec3, n: usize) -> TriMesh {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    let size = hi - lo;
+    for axis in 0..3 {
+        for side in [0.0f32, 1.0] {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            let base = vertices.len() as u32;
+            for i in 0..=n {
+                for j in 0..=n {
+                    let mut p = Vec3::ZERO;
+                    p[axis] = side;
+                    p[u] = i as f32 / n as f32;
+                    p[v] = j as f32 / n as f32;
+                    vertices.push(lo + p * size);
+                }
+            }
+            for i in 0..n as u32 {
+                for j in 0..n as u32 {
+                    let k = base + i * (n as u32 + 1) + j;
+                    triangles.push([k, k + n as u32 + 1, k + n as u32 + 2]);
+                    triangles.push([k, k + n as u32 + 2, k + 1]);
+                }
+            }
+        }
+    }
+    TriMesh::new(vertices, triangles, None, None).unwrap()
+}
+
+fn merged(parts: &[&TriMesh]) -> TriMesh {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    for m in parts {
+        let base = vertices.len() as u32;
+        vertices.extend_from_slice(&m.vertices);
+        triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+    TriMesh::new(vertices, triangles, None, None).unwrap()
+}
+
+#[test]
+fn fits_a_head_on_a_torso_before_a_backdrop() {
+    let head = fixture("head.ply");
+    // A torso under the shoulders' cut (0.45 × 0.25 × 0.35 m) and a backdrop 1 m square, 0.35 m
+    // behind the head: together four times the head's area.
+    let torso = boxed(Vec3::new(-0.225, -0.125, -0.52), Vec3::new(0.225, 0.125, -0.17), 12);
+    let backdrop = boxed(Vec3::new(-0.5, 0.35, -0.6), Vec3::new(0.5, 0.36, 0.4), 20);
+    let raw = merged(&[&head, &torso, &backdrop]);
+    let (rot, scale, pos, _) = fit_moved(&raw, &head, 12).unwrap();
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}
+
+#[test]
+fn a_mesh_that_is_not_a_head_fails_with_its_residual() {
+    let head = fixture("head.ply");
+    // A lumpy blob of a head's size.
+    let mut blob = boxed(Vec3::splat(-1.0), Vec3::splat(1.0), 24);
+    for v in &mut blob.vertices {
+        let d = v.normalize();
+        let r = 0.1 * (1.0 + 0.15 * (3.0 * d.x).sin() * (2.0 * d.y).cos() + 0.1 * (4.0 * d.z).sin());
+        *v = d * r;
+    }
+    let err = fit_moved(&blob, &head, 13).expect_err("a blob is not a head");
+    let msg = err.to_string();
+    println!("{msg}");
+    assert!(matches!(err, FitError::Poor { .. }));
+    assert!(msg.contains("residual") && msg.contains("mm"), "{msg}");
+}
+
+#[test]
+fn cameras_around_the_head_give_its_up_and_centre() {
+    use hairrecon_core::Camera;
+    use hairrecon_recon::head_fit::coarse::camera_prior;
+    let head = fixture("head.ply");
+    let mut rng = Rng(14);
+    let truth = random_similarity(&mut rng);
+    // Eight cameras on a ring 0.8 m from the head, level with it, looking at its centre (canonical).
+    let cameras: Vec<Camera> = (0..8)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / 8.0;
+            let eye = Vec3::new(0.8 * a.cos(), 0.8 * a.sin(), 0.1);
+            let c = Camera::look_at(eye, Vec3::new(0.0, 0.0, 0.05), Vec3::Z, 0.6, 400, 600).unwrap();
+            // The same camera in the raw frame: R' = R Tᵣᵀ, t' = s t − R' T.t (camera coordinates scaled by s).
+            let r = c.r().as_dmat3() * truth.rotation.transpose();
+            let t = truth.scale * c.t().as_dvec3() - r * truth.translation;
+            let rows = r.transpose().to_cols_array_2d().map(|row| row.map(|v| v as f32));
+            Camera::new(c.k_rows(), rows, t.as_vec3().to_array(), 400, 600).unwrap()
+        })
+        .collect();
+    let (up, centre) = camera_prior(&cameras).unwrap();
+    assert!(up.angle_between(truth.rotation * DVec3::Z).to_degrees() < 0.1, "{up:?}");
+    assert!((centre - truth.apply(DVec3::new(0.0, 0.0, 0.05))).length() < 1e-3 * truth.scale);
+    let raw = moved(&punch_holes(&add_noise(&head, 0.0005, &mut rng), 4, 0.10, &mut rng), &truth);
+    let fit = fit_similarity(&template(&head), &raw, Some(&cameras), &FitOptions::default()).unwrap();
+    let (rot, scale, pos) = errors(&fit, &truth, &head);
+    println!("with cameras: rotation {rot:.3}°, scale {:.3}%, position {:.2} mm", scale * 100.0, pos * 1e3);
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}
