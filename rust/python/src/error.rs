@@ -97,7 +97,8 @@ impl Class {
             ReconError::NoScalp { .. }
             | ReconError::Scalp { .. }
             | ReconError::NotCanonical { .. }
-            | ReconError::Implausible { .. } => Class::Capture,
+            | ReconError::Implausible { .. }
+            | ReconError::EmptyStage { .. } => Class::Capture,
             ReconError::Config(_) | ReconError::EmptyPlan { .. } | ReconError::MissingStageOutput { .. } => {
                 Class::Input
             }

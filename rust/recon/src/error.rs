@@ -61,6 +61,9 @@ pub enum ReconError {
     /// A mesh or the cameras cannot be of a head in metres ([`crate::preflight`]).
     #[error("{what}: {msg}")]
     Implausible { what: String, msg: String },
+    /// A stage made nothing to work on, so the later stages cannot run.
+    #[error("the {stage} stage found {what}: {cause}")]
+    EmptyStage { stage: Stage, what: &'static str, cause: &'static str },
     /// The capture has no scalp mesh.
     #[error("the capture {dir} has no scalp mesh; add \"scalp_mesh\" to its capture.json")]
     NoScalp { dir: PathBuf },

@@ -135,3 +135,21 @@ fn meshes_in_other_units_or_frames_are_refused_before_anything_is_written() {
     refused(&c, "the cameras", &["same frame"]);
     let _ = std::fs::remove_dir_all(&cap.dir);
 }
+
+#[test]
+fn masks_without_hair_stop_at_the_stage_that_finds_no_points() {
+    let cap = capture("black");
+    for v in &cap.views {
+        let m = v.mask.as_ref().expect("the synthetic capture has masks");
+        let (w, h) = (v.camera.width(), v.camera.height());
+        hairrecon_core::image_io::write_png8_gray(m, &hairrecon_core::image_io::GrayImage32::filled(w, h, 0.0))
+            .unwrap();
+    }
+    let out_dir = cap.dir.join("out");
+    let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), Plan::default(), &NoProgress).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, ReconError::EmptyStage { stage: Stage::Orient3d, .. }), "{msg}");
+    assert!(msg.contains("orient3d") && msg.contains("masks"), "{msg}");
+    assert!(!out_dir.join("strands.hair").exists());
+    let _ = std::fs::remove_dir_all(&cap.dir);
+}

@@ -24,7 +24,16 @@ pub fn run(ctx: &Context<'_>, cfg: &ReconstructConfig, maps: &[OrientationMap]) 
     let images: Vec<GrayImage> =
         ctx.capture.views.iter().map(|v| GrayImage::load(&v.image)).collect::<Result<_, _>>()?;
     let views = MvsView::for_capture(ctx.capture, maps, &images);
-    Ok(Orient3dOut { points: estimate(&views, raw, &cfg.mvs, ctx.progress)? })
+    let points = estimate(&views, raw, &cfg.mvs, ctx.progress)?;
+    if points.is_empty() {
+        return Err(ReconError::EmptyStage {
+            stage: Stage::Orient3d,
+            what: "no 3D hair points",
+            cause: "no hair pixel matched across views; check that the masks show the hair (not all black), that at \
+                    least two views see it, and that the cameras look at the raw mesh",
+        });
+    }
+    Ok(Orient3dOut { points })
 }
 
 impl Orient3dOut {
