@@ -127,6 +127,18 @@ pub struct ViewSpec {
     pub original: Option<PathBuf>,
 }
 
+impl ViewSpec {
+    /// The files the view names (not `original`, which is never read), by field name.
+    fn files(&self) -> [(&'static str, Option<&PathBuf>); 4] {
+        [
+            ("image", Some(&self.image)),
+            ("mask", self.mask.as_ref()),
+            ("gt_orientation", self.gt_orientation.as_ref()),
+            ("gt_depth", self.gt_depth.as_ref()),
+        ]
+    }
+}
+
 /// capture.json as written on disk.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CaptureSpec {
@@ -316,6 +328,16 @@ impl Capture {
 }
 
 impl CaptureSpec {
+    /// The meshes and strand files the capture names, by field name.
+    fn mesh_files(&self) -> [(&'static str, Option<&PathBuf>); 4] {
+        [
+            ("raw_mesh", Some(&self.raw_mesh)),
+            ("head_mesh", self.head_mesh.as_ref()),
+            ("scalp_mesh", self.scalp_mesh.as_ref()),
+            ("gt_strands", self.gt_strands.as_ref()),
+        ]
+    }
+
     /// Checks everything that capture.json alone tells, without looking at the files it names:
     /// the version, units and convention, at least one view, unique view names, no empty paths, and
     /// every camera (see [`Camera::new`]). Returns the views' cameras, in order. `json` names the
@@ -346,13 +368,7 @@ impl CaptureSpec {
             if !names.insert(v.name.as_str()) {
                 return Err(CaptureError::DuplicateView { path: json.into(), view: v.name.clone() });
             }
-            let files = [
-                ("image", Some(&v.image)),
-                ("mask", v.mask.as_ref()),
-                ("gt_orientation", v.gt_orientation.as_ref()),
-                ("gt_depth", v.gt_depth.as_ref()),
-            ];
-            for (what, p) in files {
+            for (what, p) in v.files() {
                 if p.is_some_and(|p| p.as_os_str().is_empty()) {
                     return Err(empty(format!("view {:?}: its {what}", v.name)));
                 }
@@ -364,13 +380,7 @@ impl CaptureSpec {
             })?;
             cameras.push(camera);
         }
-        let meshes = [
-            ("raw_mesh", Some(&self.raw_mesh)),
-            ("head_mesh", self.head_mesh.as_ref()),
-            ("scalp_mesh", self.scalp_mesh.as_ref()),
-            ("gt_strands", self.gt_strands.as_ref()),
-        ];
-        for (what, p) in meshes {
+        for (what, p) in self.mesh_files() {
             if p.is_some_and(|p| p.as_os_str().is_empty()) {
                 return Err(empty(what.to_string()));
             }
@@ -395,25 +405,13 @@ impl CaptureSpec {
             Ok(())
         };
         for v in &self.views {
-            let files = [
-                ("image", Some(&v.image)),
-                ("mask", v.mask.as_ref()),
-                ("gt_orientation", v.gt_orientation.as_ref()),
-                ("gt_depth", v.gt_depth.as_ref()),
-            ];
-            for (what, p) in files {
+            for (what, p) in v.files() {
                 if let Some(p) = p {
                     check(format!("view {:?}: {what}", v.name), p)?;
                 }
             }
         }
-        let meshes = [
-            ("raw_mesh", Some(&self.raw_mesh)),
-            ("head_mesh", self.head_mesh.as_ref()),
-            ("scalp_mesh", self.scalp_mesh.as_ref()),
-            ("gt_strands", self.gt_strands.as_ref()),
-        ];
-        for (what, p) in meshes {
+        for (what, p) in self.mesh_files() {
             if let Some(p) = p {
                 check(what.into(), p)?;
             }
