@@ -22,23 +22,6 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import addon_core  # noqa: E402  (the extension's bpy-free core as hairrecon_addon_core)
 
 
-def camera_roundtrip(capture: Path, scene) -> dict:
-    """The largest differences between each view's K, R, t in capture.json and what its Blender
-    camera (the object named after the view) gives back through the add-on's conversion."""
-    spec = json.loads((capture / "capture.json").read_text())
-    pkg = extension_package()
-    from importlib import import_module
-
-    sr = import_module(pkg.__name__ + ".scene_read")
-    cam_mod = import_module(pkg.__name__ + ".core.camera")
-    worst_k = worst_rt = 0.0
-    for v in spec["views"]:
-        pin = cam_mod.opencv_from_blender(sr.blender_camera(bpy.data.objects[v["name"]], scene))
-        worst_k = max(worst_k, float(np.abs(pin.K - np.array(v["K"])).max()))
-        worst_rt = max(worst_rt, float(np.abs(pin.R - np.array(v["R"])).max()), float(np.abs(pin.t - np.array(v["t"])).max()))
-    return {"K_max_abs": worst_k, "Rt_max_abs": worst_rt}
-
-
 def load_core_camera():
     """addon/hairrecon/core/camera.py (it is bpy-free), from the repository."""
     return addon_core.load("camera")
@@ -444,7 +427,20 @@ def task_pipeline(p):
         "scalp_uv_maps": [l.name for l in s.scalp_object.data.uv_layers] if s.scalp_object else [],
     }
     # the imported cameras give back the capture's K, R, t
-    out["camera_roundtrip"] = camera_roundtrip(Path(p["capture"]), scene)
+    import json as _json
+
+    spec = _json.loads((Path(p["capture"]) / "capture.json").read_text())
+    pkg = extension_package()
+    from importlib import import_module
+
+    sr = import_module(pkg.__name__ + ".scene_read")
+    cam_mod = import_module(pkg.__name__ + ".core.camera")
+    worst_k = worst_rt = 0.0
+    for v in spec["views"]:
+        pin = cam_mod.opencv_from_blender(sr.blender_camera(bpy.data.objects[v["name"]], scene))
+        worst_k = max(worst_k, float(np.abs(pin.K - np.array(v["K"])).max()))
+        worst_rt = max(worst_rt, float(np.abs(pin.R - np.array(v["R"])).max()), float(np.abs(pin.t - np.array(v["t"])).max()))
+    out["camera_roundtrip"] = {"K_max_abs": worst_k, "Rt_max_abs": worst_rt}
 
     configure(p)
     bpy.ops.ed.undo_push(message="scene ready")  # background mode starts without an undo system
@@ -813,7 +809,18 @@ def task_import_colmap(p):
         if o.type == "CAMERA" and o.data.background_images
     ) if s.camera_collection else []
     # the imported cameras give back capture.json's K, R, t
-    out["camera_roundtrip"] = camera_roundtrip(Path(p["capture"]), scene)
+    spec = json.loads((Path(p["capture"]) / "capture.json").read_text())
+    pkg = extension_package()
+    from importlib import import_module
+
+    sr = import_module(pkg.__name__ + ".scene_read")
+    cam_mod = import_module(pkg.__name__ + ".core.camera")
+    worst_k = worst_rt = 0.0
+    for v in spec["views"]:
+        pin = cam_mod.opencv_from_blender(sr.blender_camera(bpy.data.objects[v["name"]], scene))
+        worst_k = max(worst_k, float(np.abs(pin.K - np.array(v["K"])).max()))
+        worst_rt = max(worst_rt, float(np.abs(pin.R - np.array(v["R"])).max()), float(np.abs(pin.t - np.array(v["t"])).max()))
+    out["camera_roundtrip"] = {"K_max_abs": worst_k, "Rt_max_abs": worst_rt}
     out["again"] = run(p["good"], capture_folder=p["capture"])
     return out
 
