@@ -33,9 +33,9 @@ pub struct FitHeadArgs {
     /// Template points used by the fit.
     #[arg(long, default_value_t = 2000)]
     pub samples: usize,
-    /// Fail when the trimmed RMS residual exceeds this (canonical millimetres).
-    #[arg(long, default_value_t = FitOptions::default().max_residual_mm)]
-    pub max_residual_mm: f64,
+    /// Fail when more than this fraction of the template's skin lies outside the raw mesh.
+    #[arg(long, default_value_t = FitOptions::default().max_exposed_fraction)]
+    pub max_exposed: f64,
 }
 
 /// The repository's head template, from where this program was built.
@@ -65,7 +65,7 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
     let template = HeadTemplate::new(&head, scalp.as_ref(), args.samples, 7)
         .ok_or_else(|| format!("the head template {} has no area outside its scalp", template_path.display()))?;
 
-    let opts = FitOptions { max_residual_mm: args.max_residual_mm, ..FitOptions::default() };
+    let opts = FitOptions { max_exposed_fraction: args.max_exposed, ..FitOptions::default() };
     let cams = (!args.no_cameras).then_some(cameras.as_slice());
     let fit = fit_similarity(&template, &raw, cams, &opts)?;
     let s = fit.to_canonical;
@@ -88,9 +88,11 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
             "translation": s.translation.to_array(),
         },
         "residual_mm": fit.residual_mm,
-        "inlier_fraction": fit.inlier_fraction,
-        "runner_up_mm": fit.runner_up_mm,
-        "used_fallback": fit.used_fallback,
+        "on_mesh_fraction": fit.score.on_surface,
+        "covered_fraction": fit.score.inside,
+        "exposed_fraction": fit.score.outside,
+        "cost": fit.score.cost,
+        "runner_up_cost": fit.runner_up_cost,
         "cameras_given": cams.map_or(0, <[_]>::len),
         "seconds": t0.elapsed().as_secs_f64(),
     });

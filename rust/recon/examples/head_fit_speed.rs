@@ -75,10 +75,10 @@ fn run(what: &str, raw: &TriMesh, template: &HeadTemplate, truth: &Similarity) {
     let secs = t0.elapsed().as_secs_f64();
     let want = truth.inverse();
     println!(
-        "  fit in {secs:.2} s: residual {:.3} mm, rotation error {:.3}°, scale error {:.3}%, fallback {}",
+        "  fit in {secs:.2} s: residual {:.3} mm, rotation error {:.3}°, scale error {:.3}%, exposed {:.1}%",
         fit.residual_mm,
         want.rotation_angle_to(&fit.to_canonical),
         (fit.to_canonical.scale / want.scale - 1.0).abs() * 100.0,
-        fit.used_fallback
+        fit.score.outside * 100.0
     );
 }

@@ -149,7 +149,7 @@ fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
             }
         };
         let (rot, scale, pos) = errors(&fit, &truth, &head);
-        closest_rival = closest_rival.min(fit.runner_up_mm.unwrap_or(f64::INFINITY));
+        closest_rival = closest_rival.min(fit.runner_up_cost.unwrap_or(f64::INFINITY));
         worst = (worst.0.max(rot), worst.1.max(scale), worst.2.max(pos), worst.3.max(fit.residual_mm));
         if rot > 1.0 || scale > 0.01 || pos > POSITION_TOL {
             failures.push(format!(
@@ -163,7 +163,7 @@ fn recovers_fifty_random_similarity_frames_with_noise_and_holes() {
     }
     println!(
         "50 frames in {:.1} s; worst: rotation {:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm; \
-         closest rival pose {closest_rival:.2} mm",
+         closest rival pose cost {closest_rival:.3}",
         t0.elapsed().as_secs_f64(),
         worst.0,
         worst.1 * 100.0,
@@ -181,14 +181,15 @@ fn fit_moved(raw: &TriMesh, head: &TriMesh, seed: u64) -> Result<(f64, f64, f64,
     let fit = fit_similarity(&template(head), &raw, None, &FitOptions::default())?;
     let (rot, scale, pos) = errors(&fit, &truth, head);
     println!(
-        "rotation {rot:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm, inliers {:.0}%, runner-up {:?} mm, \
-         fallback {}",
+        "rotation {rot:.3}°, scale {:.3}%, position {:.2} mm, residual {:.2} mm, on the mesh {:.0}%, exposed {:.0}%, \
+         cost {:.3}, runner-up {:?}",
         scale * 100.0,
         pos * 1e3,
         fit.residual_mm,
-        fit.inlier_fraction * 100.0,
-        fit.runner_up_mm,
-        fit.used_fallback
+        fit.score.on_surface * 100.0,
+        fit.score.outside * 100.0,
+        fit.score.cost,
+        fit.runner_up_cost,
     );
     Ok((rot, scale, pos, fit))
 }
@@ -274,7 +275,7 @@ fn a_mesh_that_is_not_a_head_fails_with_its_residual() {
     let msg = err.to_string();
     println!("{msg}");
     assert!(matches!(err, FitError::Poor { .. }));
-    assert!(msg.contains("residual") && msg.contains("mm"), "{msg}");
+    assert!(msg.contains("outside") && msg.contains("landmarks"), "{msg}");
 }
 
 #[test]

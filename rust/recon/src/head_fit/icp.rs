@@ -43,6 +43,18 @@ pub struct IcpOptions {
     pub tolerance: f64,
     /// Query the mesh in parallel (for one long run; off when many runs go in parallel).
     pub parallel: bool,
+    /// Leave out the points that something covers (see [`Cover`]); needs the points' normals.
+    pub cover: Option<Cover>,
+}
+
+/// Which template points ICP leaves out as covered: farther than `gate` from the surface, with
+/// the surface crossing the ray along their outward normal within `reach` (both in template
+/// units). Hair over the scalp and the ears, a collar over the neck: the template's skin there
+/// lies under the raw surface, and pulling it out onto the hair would inflate the fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cover {
+    pub gate: f64,
+    pub reach: f64,
 }
 
 /// What an ICP run ends with.
@@ -68,6 +80,12 @@ pub struct Match {
 pub trait Target: Sync {
     /// The closest point to `p` within `cap` (beyond: `p` itself, no normal, `cap` away).
     fn closest(&self, p: DVec3, cap: f64) -> Match;
+
+    /// Whether the surface crosses the ray from `p` along `dir` (unit) within `reach`. A target
+    /// that cannot tell says no.
+    fn crosses(&self, _p: DVec3, _dir: DVec3, _reach: f64) -> bool {
+        false
+    }
 }
 
 /// A mesh: exact closest points on its triangles, with the triangle's normal.
@@ -82,6 +100,11 @@ impl Target for Bvh {
             },
             None => Match { point: p, normal: DVec3::ZERO, distance: cap },
         }
+    }
+
+    #[inline]
+    fn crosses(&self, p: DVec3, dir: DVec3, reach: f64) -> bool {
+        self.ray_cast(p.as_vec3(), dir.as_vec3(), 0.0, reach as f32).is_some()
     }
 }
 
@@ -132,24 +155,17 @@ pub(crate) fn match_points<T: Target + ?Sized>(
     }
 }
 
-/// The trimmed RMS of distances: the `keep` fraction of smallest ones. Reorders `d`.
-pub(crate) fn trimmed_rms(d: &mut [f64], keep: f64) -> f64 {
-    let k = kept(d.len(), keep);
-    if k < d.len() {
-        d.select_nth_unstable_by(k, f64::total_cmp);
-    }
-    (d[..k].iter().map(|x| x * x).sum::<f64>() / k as f64).sqrt()
-}
-
 fn kept(n: usize, keep: f64) -> usize {
     ((n as f64 * keep).round() as usize).clamp(3.min(n), n)
 }
 
 /// Trimmed ICP of `points` (template frame) onto `target` from `init` (template → raw). `cap`
 /// bounds the closest-point search (raw frame units); farther points count as `cap` away.
-/// Point-to-plane needs a target with normals (a [`Bvh`]).
+/// Point-to-plane needs a target with normals (a [`Bvh`]). `normals` (the points' outward unit
+/// normals) are needed by [`IcpOptions::cover`].
 pub fn trimmed_icp<T: Target + ?Sized>(
     points: &[DVec3],
+    normals: Option<&[DVec3]>,
     target: &T,
     init: Similarity,
     cap: f64,
@@ -158,12 +174,31 @@ pub fn trimmed_icp<T: Target + ?Sized>(
     let mut t = init;
     let mut residual = f64::INFINITY;
     let mut iterations = 0;
-    let k = kept(points.len(), opts.keep);
-    let mut order: Vec<usize> = (0..points.len()).collect();
+    let mut order: Vec<usize> = Vec::with_capacity(points.len());
     for it in 0..opts.iterations {
         iterations = it + 1;
         let m = match_points(points, &t, target, cap, opts.parallel);
+        order.clear();
+        match (opts.cover, normals) {
+            (Some(c), Some(normals)) => {
+                let covered = |i: usize| {
+                    m[i].distance > c.gate * t.scale
+                        && target.crosses(t.apply(points[i]), t.rotation * normals[i], c.reach * t.scale)
+                };
+                let keep: Vec<bool> = if opts.parallel {
+                    (0..points.len()).into_par_iter().map(|i| !covered(i)).collect()
+                } else {
+                    (0..points.len()).map(|i| !covered(i)).collect()
+                };
+                order.extend((0..points.len()).filter(|&i| keep[i]));
+            }
+            _ => order.extend(0..points.len()),
+        }
+        if order.len() < 7 {
+            break;
+        }
         order.sort_unstable_by(|&a, &b| m[a].distance.total_cmp(&m[b].distance).then(a.cmp(&b)));
+        let k = kept(order.len(), opts.keep);
         let sel = &order[..k];
         residual = (sel.iter().map(|&i| m[i].distance * m[i].distance).sum::<f64>() / k as f64).sqrt() / t.scale;
         let src: Vec<DVec3> = sel.iter().map(|&i| points[i]).collect();

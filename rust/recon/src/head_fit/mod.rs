@@ -22,6 +22,7 @@
 
 pub mod coarse;
 pub mod icp;
+pub mod score;
 pub mod template;
 pub mod umeyama;
 
@@ -31,6 +32,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 pub use icp::{trimmed_icp, IcpMetric, IcpOptions, IcpOutcome, SurfaceSamples, Target};
+pub use score::{score_pose, PoseScore};
 pub use template::{HeadTemplate, SurfaceStats};
 
 /// `x ↦ scale · rotation · x + translation`.
@@ -97,17 +99,23 @@ pub struct FitOptions {
     pub refine_best: usize,
     /// ICP iterations of a full refinement, at most.
     pub refine_iterations: usize,
-    /// The fraction of template points that count (the rest, the farthest, are trimmed).
+    /// The fraction of uncovered template points that count in an ICP step (the rest, the
+    /// farthest, are trimmed).
     pub keep: f64,
-    /// A fit whose trimmed RMS residual exceeds this fails.
-    pub max_residual_mm: f64,
-    /// A template point within this of the raw mesh is an inlier.
+    /// A template point within this of the raw mesh is on it (seen); farther, it is covered or
+    /// exposed ([`score`]).
     pub inlier_mm: f64,
-    /// A fit with a smaller fraction of inliers fails.
+    /// A fit with a smaller fraction of template points on the raw mesh fails.
     pub min_inlier_fraction: f64,
-    /// The scales tried, as fractions of the scale prior, when the first search fails (for raw
-    /// meshes with much more than the head: shoulders, a backdrop).
+    /// A fit with a larger fraction of exposed template points (outside what the cameras saw)
+    /// fails.
+    pub max_exposed_fraction: f64,
+    /// The scales of the second search, as fractions of the scale prior (for raw meshes with much
+    /// more than the head: shoulders, a backdrop).
     pub fallback_scales: Vec<f64>,
+    /// A first search that puts this fraction of the template's skin on the raw mesh is final
+    /// (a clean head); below it, the second search runs.
+    pub clean_fraction: f64,
 }
 
 impl Default for FitOptions {
@@ -119,11 +127,12 @@ impl Default for FitOptions {
             coarse_iterations: 8,
             refine_best: 3,
             refine_iterations: 30,
-            keep: 0.7,
-            max_residual_mm: 4.0,
-            inlier_mm: 3.0,
-            min_inlier_fraction: 0.5,
+            keep: 0.8,
+            inlier_mm: 5.0,
+            min_inlier_fraction: 0.3,
+            max_exposed_fraction: 0.25,
             fallback_scales: vec![1.0, 0.7, 0.5, 0.35, 0.25],
+            clean_fraction: 0.9,
         }
     }
 }
@@ -133,15 +142,14 @@ impl Default for FitOptions {
 pub struct FitResult {
     /// Raw-mesh coordinates → canonical frame (metres).
     pub to_canonical: Similarity,
-    /// Trimmed RMS distance of the template's skin points to the raw mesh, canonical mm.
+    /// RMS distance of the template's skin points on the raw mesh (within
+    /// [`FitOptions::inlier_mm`]), canonical mm.
     pub residual_mm: f64,
-    /// The fraction of template points within [`FitOptions::inlier_mm`] of the raw mesh.
-    pub inlier_fraction: f64,
-    /// The best residual of a refined pose whose rotation differs from the winner's by more than
-    /// 30° (how clearly the winner won; `None` when every refined pose agreed).
-    pub runner_up_mm: Option<f64>,
-    /// Whether the fallback search (smaller scales, densest places) was needed.
-    pub used_fallback: bool,
+    /// The pose's score on all template points.
+    pub score: PoseScore,
+    /// The best cost of a refined pose whose rotation differs from the winner's by more than 30°
+    /// (how clearly the winner won; `None` when every refined pose agreed).
+    pub runner_up_cost: Option<f64>,
 }
 
 /// Why no similarity was found.
@@ -152,12 +160,12 @@ pub enum FitError {
     #[error("the head template has no area or no skin outside its scalp; give the bundled head.ply")]
     EmptyTemplate,
     #[error(
-        "the head template does not fit the raw mesh: best trimmed residual {residual_mm:.1} mm with \
-         {inliers:.0}% of template points within {inlier_mm} mm (a fit needs at most {max_residual_mm} mm and \
-         {min_inliers:.0}%); check that the mesh shows the head (face, ears, neck) and is not cut to the hair \
-         only, or give landmarks"
+        "the head template does not fit the raw mesh: at the best pose {on:.0}% of the template's skin lies \
+         within {inlier_mm} mm of the mesh and {exposed:.0}% outside it (a fit needs at least {min_on:.0}% and at \
+         most {max_exposed:.0}%); check that the mesh shows the face and is not cut to the hair only, or give \
+         landmarks or a scalp by hand"
     )]
-    Poor { residual_mm: f64, inliers: f64, inlier_mm: f64, max_residual_mm: f64, min_inliers: f64 },
+    Poor { on: f64, exposed: f64, inlier_mm: f64, min_on: f64, max_exposed: f64 },
 }
 
 /// A refined candidate.
@@ -165,7 +173,7 @@ pub enum FitError {
 struct Candidate {
     /// Template → normalised raw.
     t: Similarity,
-    residual: f64,
+    score: PoseScore,
 }
 
 /// The similarity from the raw mesh's frame to the template's (canonical) one. `cameras`, in the
@@ -215,11 +223,13 @@ pub fn fit_similarity(
     }
     let starts: Vec<Similarity> =
         centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
-    let (mut best, mut runner_up) = search(template, &bvh, &cloud, &starts, opts);
-    let mut used_fallback = false;
-    let mut stats = evaluate(template, &bvh, &best.t, opts);
-    if !acceptable(&stats, opts) {
-        used_fallback = true;
+    let ctx = Search { template, bvh: &bvh, cloud: &cloud, opts, tau: opts.inlier_mm * 1e-3 };
+    let mut best = ctx.run(&starts);
+    // Unless nearly all the skin is on the mesh already (a clean head), search again at a ladder
+    // of smaller scales about the places where the surface is densest at a head's size: raw
+    // meshes with much more than the head (shoulders, a backdrop) make the first priors wrong,
+    // and hair over much of the skin makes a wrong pose's score close to the right one's.
+    if best.0.score.on_surface < opts.clean_fraction {
         let samples = template::sample_surface(bvh.mesh(), |_| true, 4000, 0x5eed_b10b);
         let mut starts = Vec::new();
         for &f in &opts.fallback_scales {
@@ -233,114 +243,170 @@ pub fn fit_similarity(
                 starts.extend(rotations.iter().map(|&r| pose(r, c, f)));
             }
         }
-        let (b, r) = search(template, &bvh, &cloud, &starts, opts);
-        let s = evaluate(template, &bvh, &b.t, opts);
-        if s.0 < stats.0 {
-            (best, runner_up, stats) = (b, r, s);
+        let other = ctx.run(&starts);
+        if other.0.score.cost < best.0.score.cost {
+            best = other;
         }
     }
-    let (residual_mm, inlier_fraction) = stats;
-    if !acceptable(&stats, opts) {
+    let (best, runner_up) = best;
+    let score = best.score;
+    if !acceptable(&score, opts) {
         return Err(FitError::Poor {
-            residual_mm,
-            inliers: 100.0 * inlier_fraction,
+            on: 100.0 * score.on_surface,
+            exposed: 100.0 * score.outside,
             inlier_mm: opts.inlier_mm,
-            max_residual_mm: opts.max_residual_mm,
-            min_inliers: 100.0 * opts.min_inlier_fraction,
+            min_on: 100.0 * opts.min_inlier_fraction,
+            max_exposed: 100.0 * opts.max_exposed_fraction,
         });
     }
     // canonical → normalised raw → raw; inverted.
     let to_raw = norm.inverse().then_after(&best.t);
     Ok(FitResult {
         to_canonical: to_raw.inverse(),
-        residual_mm,
-        inlier_fraction,
-        runner_up_mm: runner_up.map(|c| c.residual * 1e3),
-        used_fallback,
+        residual_mm: score.rms_on_surface * 1e3,
+        score,
+        runner_up_cost: runner_up.map(|c| c.score.cost),
     })
 }
 
-fn acceptable(stats: &(f64, f64), opts: &FitOptions) -> bool {
-    stats.0 <= opts.max_residual_mm && stats.1 >= opts.min_inlier_fraction
+fn acceptable(score: &PoseScore, opts: &FitOptions) -> bool {
+    score.on_surface >= opts.min_inlier_fraction && score.outside <= opts.max_exposed_fraction
 }
 
-/// Trimmed residual (canonical mm) and inlier fraction of a pose on all template points.
-fn evaluate(template: &HeadTemplate, bvh: &Bvh, t: &Similarity, opts: &FitOptions) -> (f64, f64) {
-    let cap = 0.5 * t.scale * template.stats.radius;
-    let mut d: Vec<f64> =
-        icp::match_points(&template.points, t, bvh, cap, true).into_iter().map(|m| m.distance / t.scale).collect();
-    let inliers = d.iter().filter(|&&x| x * 1e3 <= opts.inlier_mm).count() as f64 / d.len() as f64;
-    (icp::trimmed_rms(&mut d, opts.keep) * 1e3, inliers)
+/// The coarse ICP's target: the raw surface's samples for closest points (fast), its mesh for
+/// whether something covers a point.
+struct CoarseTarget<'a> {
+    cloud: &'a SurfaceSamples,
+    bvh: &'a Bvh,
 }
 
-/// Brief ICP from every start (in parallel), then full ICP from the best few; the best and the best
-/// whose rotation differs from it by more than 30°.
-fn search(
-    template: &HeadTemplate,
-    bvh: &Bvh,
-    cloud: &SurfaceSamples,
-    starts: &[Similarity],
-    opts: &FitOptions,
-) -> (Candidate, Option<Candidate>) {
-    let cap_of = |t: &Similarity| 0.5 * t.scale * template.stats.radius;
-    // Brief point-to-plane ICP on the surface samples from each start, in parallel, ranked by
-    // residual (ties by start, for determinism).
-    let brief = |starts: &[(usize, Similarity)], points: usize, iterations: usize| {
-        let pts = &template.points[..points.clamp(3, template.points.len())];
-        let o = IcpOptions { metric: IcpMetric::Plane, iterations, keep: opts.keep, tolerance: 0.0, parallel: false };
+impl Target for CoarseTarget<'_> {
+    #[inline]
+    fn closest(&self, p: DVec3, cap: f64) -> icp::Match {
+        self.cloud.closest(p, cap)
+    }
+    #[inline]
+    fn crosses(&self, p: DVec3, dir: DVec3, reach: f64) -> bool {
+        self.bvh.crosses(p, dir, reach)
+    }
+}
+
+/// One search over start poses (template → normalised raw).
+struct Search<'a> {
+    template: &'a HeadTemplate,
+    bvh: &'a Bvh,
+    cloud: &'a SurfaceSamples,
+    opts: &'a FitOptions,
+    /// On-surface distance, template units.
+    tau: f64,
+}
+
+impl Search<'_> {
+    fn cap(&self, t: &Similarity) -> f64 {
+        0.5 * t.scale * self.template.stats.radius
+    }
+
+    fn cover(&self) -> Option<icp::Cover> {
+        Some(icp::Cover { gate: self.tau, reach: score::COVER_DEPTH * self.template.stats.radius })
+    }
+
+    /// The score of a pose on the first `points` template points.
+    fn score(&self, t: &Similarity, points: usize, parallel: bool) -> PoseScore {
+        let n = points.clamp(3, self.template.points.len());
+        score_pose(
+            &self.template.points[..n],
+            &self.template.normals[..n],
+            self.bvh,
+            t,
+            self.tau,
+            self.template.stats.radius,
+            parallel,
+        )
+    }
+
+    /// Brief point-to-plane ICP on the surface samples from each start, in parallel, ranked by
+    /// score (ties by start, for determinism).
+    fn brief(&self, starts: &[(usize, Similarity)], points: usize, iterations: usize) -> Vec<(usize, Candidate)> {
+        let n = points.clamp(3, self.template.points.len());
+        let (pts, nrm) = (&self.template.points[..n], &self.template.normals[..n]);
+        let target = CoarseTarget { cloud: self.cloud, bvh: self.bvh };
+        let o = IcpOptions {
+            metric: IcpMetric::Plane,
+            iterations,
+            keep: self.opts.keep,
+            tolerance: 0.0,
+            parallel: false,
+            cover: self.cover(),
+        };
         let mut out: Vec<(usize, Candidate)> = starts
             .par_iter()
             .map(|&(i, s)| {
-                let r = trimmed_icp(pts, cloud, s, cap_of(&s), &o);
-                (i, Candidate { t: r.transform, residual: r.residual })
+                let r = trimmed_icp(pts, Some(nrm), &target, s, self.cap(&s), &o);
+                (i, Candidate { t: r.transform, score: self.score(&r.transform, 2 * n, false) })
             })
             .collect();
-        out.sort_by(|a, b| a.1.residual.total_cmp(&b.1.residual).then(a.0.cmp(&b.0)));
+        out.sort_by(|a, b| a.1.score.cost.total_cmp(&b.1.score.cost).then(a.0.cmp(&b.0)));
         out
-    };
-    // Every start briefly on half the points; the most promising quarter on to convergence.
-    let all: Vec<(usize, Similarity)> = starts.iter().copied().enumerate().collect();
-    let first = brief(&all, opts.coarse_points / 2, opts.coarse_iterations / 2);
-    let promising: Vec<(usize, Similarity)> =
-        first.iter().take(first.len().div_ceil(4).max(opts.refine_best)).map(|(i, c)| (*i, c.t)).collect();
-    let coarse = brief(&promising, opts.coarse_points, opts.coarse_iterations);
-    // The best few, distinct in rotation (near-duplicates converge to the same pose).
-    let mut picked: Vec<Candidate> = Vec::new();
-    for (_, c) in &coarse {
-        if picked.len() >= opts.refine_best.max(1) {
-            break;
-        }
-        if picked.iter().all(|p| p.t.rotation_angle_to(&c.t) > 10.0 || (p.t.scale / c.t.scale).ln().abs() > 0.1) {
-            picked.push(*c);
-        }
     }
-    // The picked few on the mesh itself with more points, then the best of them on all points.
-    let mid_pts = &template.points[..(4 * opts.coarse_points).clamp(3, template.points.len())];
-    let plane = IcpOptions {
-        metric: IcpMetric::Plane,
-        iterations: opts.refine_iterations,
-        keep: opts.keep,
-        tolerance: 1e-6,
-        parallel: false,
-    };
-    let mut refined: Vec<Candidate> = picked
-        .par_iter()
-        .map(|c| {
-            let o = trimmed_icp(mid_pts, bvh, c.t, cap_of(&c.t), &IcpOptions { tolerance: 1e-5, ..plane });
-            Candidate { t: o.transform, residual: o.residual }
-        })
-        .collect();
-    refined.sort_by(|a, b| a.residual.total_cmp(&b.residual));
-    let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
-    let o = trimmed_icp(
-        &template.points,
-        bvh,
-        refined[0].t,
-        cap_of(&refined[0].t),
-        &IcpOptions { tolerance: 1e-7, parallel: true, ..plane },
-    );
-    let best = Candidate { t: o.transform, residual: o.residual };
-    (best, runner_up)
+
+    /// Brief ICP from every start, then full ICP from the best few; the best and the best whose
+    /// rotation differs from it by more than 30°.
+    fn run(&self, starts: &[Similarity]) -> (Candidate, Option<Candidate>) {
+        let opts = self.opts;
+        // Every start briefly on half the points; the most promising quarter on further.
+        let all: Vec<(usize, Similarity)> = starts.iter().copied().enumerate().collect();
+        let first = self.brief(&all, opts.coarse_points / 2, opts.coarse_iterations / 2);
+        let promising: Vec<(usize, Similarity)> =
+            first.iter().take(first.len().div_ceil(4).max(opts.refine_best)).map(|(i, c)| (*i, c.t)).collect();
+        let coarse = self.brief(&promising, opts.coarse_points, opts.coarse_iterations);
+        // The best few, distinct in rotation (near-duplicates converge to the same pose).
+        let mut picked: Vec<Candidate> = Vec::new();
+        for (_, c) in &coarse {
+            if picked.len() >= opts.refine_best.max(1) {
+                break;
+            }
+            if picked.iter().all(|p| p.t.rotation_angle_to(&c.t) > 10.0 || (p.t.scale / c.t.scale).ln().abs() > 0.1) {
+                picked.push(*c);
+            }
+        }
+        // The picked few on the mesh itself with more points, then the best of them on all points.
+        let n = (4 * opts.coarse_points).clamp(3, self.template.points.len());
+        let plane = IcpOptions {
+            metric: IcpMetric::Plane,
+            iterations: opts.refine_iterations,
+            keep: opts.keep,
+            tolerance: 1e-5,
+            parallel: false,
+            cover: self.cover(),
+        };
+        let mut refined: Vec<Candidate> = picked
+            .par_iter()
+            .map(|c| {
+                let o = trimmed_icp(
+                    &self.template.points[..n],
+                    Some(&self.template.normals[..n]),
+                    self.bvh,
+                    c.t,
+                    self.cap(&c.t),
+                    &plane,
+                );
+                Candidate { t: o.transform, score: self.score(&o.transform, usize::MAX, false) }
+            })
+            .collect();
+        refined.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
+        let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
+        let o = trimmed_icp(
+            &self.template.points,
+            Some(&self.template.normals),
+            self.bvh,
+            refined[0].t,
+            self.cap(&refined[0].t),
+            &IcpOptions { tolerance: 1e-7, parallel: true, ..plane },
+        );
+        let full = Candidate { t: o.transform, score: self.score(&o.transform, usize::MAX, true) };
+        let best = if full.score.cost <= refined[0].score.cost { full } else { refined[0] };
+        (best, runner_up)
+    }
 }
 
 /// Maps a mesh's vertices by a similarity (f64 inside), normals rotated; for callers that move a

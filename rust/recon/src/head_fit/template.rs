@@ -105,6 +105,8 @@ pub(crate) fn sample_surface_normals(
 pub struct HeadTemplate {
     /// Skin points in the canonical frame (metres), area-weighted, in random order.
     pub(crate) points: Vec<DVec3>,
+    /// Their outward unit normals.
+    pub(crate) normals: Vec<DVec3>,
     /// The whole head's surface statistics (scale and centre prior).
     pub(crate) stats: SurfaceStats,
 }
@@ -120,13 +122,19 @@ impl HeadTemplate {
         let scalp_vertices: std::collections::HashSet<[u32; 3]> =
             scalp.map(|s| s.vertices.iter().map(|&v| key(v)).collect()).unwrap_or_default();
         let is_skin = |i: usize| !head.corners(i).iter().all(|&v| scalp_vertices.contains(&key(v)));
-        let points = sample_surface(head, is_skin, samples.max(16), seed);
-        (!points.is_empty()).then_some(Self { points, stats })
+        let (points, normals) = sample_surface_normals(head, is_skin, samples.max(16), seed).into_iter().unzip();
+        let t = Self { points, normals, stats };
+        (!t.points.is_empty()).then_some(t)
     }
 
     /// The skin sample points (canonical frame, metres), in random order.
     pub fn points(&self) -> &[DVec3] {
         &self.points
+    }
+
+    /// Their outward unit normals.
+    pub fn normals(&self) -> &[DVec3] {
+        &self.normals
     }
 
     /// The number of sample points.

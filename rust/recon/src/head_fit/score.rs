@@ -1,0 +1,99 @@
+//! How well a pose explains the raw mesh, knowing that hair and clothes cover skin.
+//!
+//! A template point mapped onto the raw mesh is in one of three states (lengths in the template's
+//! units):
+//! - on the surface (within `tau` of it): the skin is seen; cost `(d / tau)²`;
+//! - covered: a ray from the point along its outward normal meets the raw surface within
+//!   [`COVER_DEPTH`] × the head's size: hair, a collar or a hat lies over the skin, possible
+//!   anywhere, so a constant cost [`INSIDE_COST`], less than a violation;
+//! - exposed: nothing lies over it, so the cameras would have seen the skin here and did not: the
+//!   template pokes out of the capture (or the raw mesh has a hole); cost 1.
+//! A template shrunk inside the raw mesh pays the covered cost everywhere; the true pose pays it
+//! only where hair lies, and nothing on the face, ears and neck that the capture shows. The side is
+//! told by rays along the template's own normals, never by the raw mesh's: under hair the closest
+//! raw triangle is often the inner side of the hair layer, facing the skin.
+
+use glam::DVec3;
+use hairrecon_core::Bvh;
+use rayon::prelude::*;
+
+use super::icp::Target;
+use super::Similarity;
+
+/// The cost of a template point covered by the raw surface (inside it by more than `tau`).
+pub const INSIDE_COST: f64 = 0.6;
+
+/// A pose's score over the template points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseScore {
+    /// The mean cost, in [0, 1]: lower is better.
+    pub cost: f64,
+    /// The fraction of points on the surface (within `tau`).
+    pub on_surface: f64,
+    /// The fraction inside (covered).
+    pub inside: f64,
+    /// The fraction outside (violations).
+    pub outside: f64,
+    /// The RMS distance of the points on the surface, template units.
+    pub rms_on_surface: f64,
+}
+
+/// How far out (template units, as a fraction of the template's radius of gyration) a covering
+/// surface may lie: hair's thickness over the skin.
+pub const COVER_DEPTH: f64 = 0.5;
+
+/// Scores the pose `t` (template → raw) of `points` with outward unit `normals` (template frame)
+/// against `bvh`; `tau` and `radius` (the template's size) in template units.
+pub fn score_pose(
+    points: &[DVec3],
+    normals: &[DVec3],
+    bvh: &Bvh,
+    t: &Similarity,
+    tau: f64,
+    radius: f64,
+    parallel: bool,
+) -> PoseScore {
+    let reach = (COVER_DEPTH * radius * t.scale) as f32;
+    let one = |(p, n): (&DVec3, &DVec3)| {
+        let x = t.apply(*p);
+        let d = bvh.closest(x, tau * t.scale).distance / t.scale;
+        if d < tau {
+            (0u8, d)
+        } else if bvh.ray_cast(x.as_vec3(), (t.rotation * *n).as_vec3(), 0.0, reach).is_some() {
+            (1, d)
+        } else {
+            (2, d)
+        }
+    };
+    let states: Vec<(u8, f64)> = if parallel {
+        points.par_iter().zip(normals).map(one).collect()
+    } else {
+        points.iter().zip(normals).map(one).collect()
+    };
+    let n = states.len().max(1) as f64;
+    let (mut cost, mut on, mut inside, mut outside, mut sq) = (0.0, 0usize, 0usize, 0usize, 0.0);
+    for &(s, d) in &states {
+        match s {
+            0 => {
+                on += 1;
+                sq += d * d;
+                cost += (d / tau).powi(2);
+            }
+            1 => {
+                inside += 1;
+                cost += INSIDE_COST;
+            }
+            _ => {
+                outside += 1;
+                cost += 1.0;
+            }
+        }
+    }
+    PoseScore {
+        cost: cost / n,
+        on_surface: on as f64 / n,
+        inside: inside as f64 / n,
+        outside: outside as f64 / n,
+        rms_on_surface: if on > 0 { (sq / on as f64).sqrt() } else { f64::INFINITY },
+    }
+}
