@@ -8,6 +8,7 @@
 //!   anywhere, so a constant cost [`INSIDE_COST`], less than a violation;
 //! - exposed: nothing lies over it, so the cameras would have seen the skin here and did not: the
 //!   template pokes out of the capture (or the raw mesh has a hole); cost 1.
+//!
 //! A template shrunk inside the raw mesh pays the covered cost everywhere; the true pose pays it
 //! only where hair lies, and nothing on the face, ears and neck that the capture shows. The side is
 //! told by rays along the template's own normals, never by the raw mesh's: under hair the closest
