@@ -4,8 +4,8 @@ For each combination it calls ``hairrecon synth-hair`` (the seeded hairstyle gen
 head), then ``scripts/render_synthetic.py`` (Cycles render, ground truth, raw mesh). The output folder
 (default ``bench_out/``, gitignored) gets one capture per combination, named
 ``<preset>_<style>_<colour>/`` (``<preset>_<style>_<colour>_clutter/`` with ``--background clutter``), plus
-``<preset>_<style>.hair`` and ``benchmark.json`` with what was made and how long each step took. Existing captures are skipped unless ``--force``;
-an interrupted one goes on from the views it finished.
+``<preset>_<style>.hair`` and ``benchmark.json`` with what was made and how long each step took. Existing
+captures are skipped unless ``--force``; an interrupted one goes on from the views it finished.
 
     .venv/bin/python scripts/make_benchmark.py --presets test --styles straight curly
     .venv/bin/python scripts/make_benchmark.py --presets paper --styles straight curly --colors brown black
