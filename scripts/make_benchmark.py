@@ -3,12 +3,13 @@
 For each combination it calls ``hairrecon synth-hair`` (the seeded hairstyle generator on the bundled
 head), then ``scripts/render_synthetic.py`` (Cycles render, ground truth, raw mesh). The output folder
 (default ``bench_out/``, gitignored) gets one capture per combination, named
-``<preset>_<style>_<colour>/``, plus ``<preset>_<style>.hair`` and ``benchmark.json`` with what was
-made and how long each step took. Existing captures are skipped unless ``--force``;
-an interrupted one goes on from the views it finished.
+``<preset>_<style>_<colour>/`` (``<preset>_<style>_<colour>_clutter/`` with ``--background clutter``), plus
+``<preset>_<style>.hair`` and ``benchmark.json`` with what was made and how long each step took. Existing
+captures are skipped unless ``--force``; an interrupted one goes on from the views it finished.
 
     .venv/bin/python scripts/make_benchmark.py --presets test --styles straight curly
     .venv/bin/python scripts/make_benchmark.py --presets paper --styles straight curly --colors brown black
+    .venv/bin/python scripts/make_benchmark.py --presets colors --styles wavy --background clutter
 """
 
 from __future__ import annotations
@@ -34,6 +35,12 @@ def main(argv=None):
     p.add_argument("--presets", nargs="+", default=["test"], choices=sorted(PRESETS))
     p.add_argument("--colors", nargs="+", default=["brown"], choices=sorted(COLORS))
     p.add_argument("--seed", type=int, default=1, help="generator seed (the render seed is 0)")
+    p.add_argument(
+        "--background",
+        choices=["uniform", "clutter"],
+        default="uniform",
+        help="render_synthetic.py --background: clutter adds a room and a clothed torso (captures named ..._clutter)",
+    )
     p.add_argument("--strands", type=int, help="override the preset's strand count")
     p.add_argument("--head", type=Path, default=REPO / "blend_fixtures" / "head.ply")
     p.add_argument("--scalp", type=Path, default=REPO / "blend_fixtures" / "scalp.ply")
@@ -69,13 +76,15 @@ def main(argv=None):
                     + ["--head", a.head, "--scalp", a.scalp]
                 )
             for color in a.colors:
-                name = f"{preset}_{style}_{color}"
+                name = f"{preset}_{style}_{color}" + ("_clutter" if a.background == "clutter" else "")
                 cap = a.out / name
                 if not a.force and (cap / "capture.json").is_file() and (cap / "raw_mesh.ply").is_file():
                     print(f"make_benchmark: {name} exists, skipped (--force remakes it)")
                     continue
                 cmd = [a.python, REPO / "scripts" / "render_synthetic.py", hair, a.head, cap]
                 cmd += ["--scalp", a.scalp, "--preset", preset, "--color", color, "--hairrecon-bin", exe]
+                if a.background != "uniform":
+                    cmd += ["--background", a.background]
                 if not a.force and (cap / "images").is_dir():
                     cmd.append("--resume")  # an interrupted render: keep the views it finished
                 t_render = run(cmd)
@@ -83,6 +92,7 @@ def main(argv=None):
                     "preset": preset,
                     "style": style,
                     "color": color,
+                    **({"background": a.background} if a.background != "uniform" else {}),
                     "strands": strands,
                     "seed": a.seed,
                     "synth_hair_s": round(t_hair, 1),

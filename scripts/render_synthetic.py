@@ -11,7 +11,9 @@ module (its wheel, target/wheels-hairrecon/): the library reads and writes every
 
 The scene follows the paper's synthetic benchmark (Dr.Hair, supplement 1.1): a white uniform
 environment, cameras evenly on the upper hemisphere around the head (a Fibonacci lattice), portrait
-2:3 images, hair as Blender hair Curves with a Principled Hair BSDF.
+2:3 images, hair as Blender hair Curves with a Principled Hair BSDF. ``--background clutter`` adds a
+textured room around the capture and a clothed torso under the head, as real photographs have them
+(``synthetic_backdrop.py``); the default, ``uniform``, writes the same files as before the option existed.
 
 Per view, one Cycles render gives the image, the depth (Cycles' Z pass: planar depth along the optical
 axis, checked), and an AOV that carries, for every camera sample whose first hit is hair, the
@@ -56,6 +58,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 # The Blender extension's bpy-free core, loaded as `hairrecon_addon_core` (scripts/addon_core.py): its
 # Blender-to-OpenCV camera conversion and sRGB curve are the ones the extension uses.
 import addon_core  # noqa: E402
+import synthetic_backdrop  # noqa: E402
 
 camera = addon_core.load("camera")
 linear_to_srgb = addon_core.load("capture").linear_to_srgb
@@ -106,6 +109,13 @@ def parse_args(argv=None):
     p.add_argument("--samples", type=int, help=f"Cycles samples per pixel ({by_preset('samples')})")
     p.add_argument("--color", choices=sorted(COLORS), default="brown", help="hair colour")
     p.add_argument("--seed", type=int, default=0, help="Cycles seed and colour randomness")
+    p.add_argument(
+        "--background",
+        choices=["uniform", "clutter"],
+        default="uniform",
+        help="uniform: the white environment alone; clutter: a textured room behind and a clothed torso under "
+        "the head, seeded by --seed (the room is cropped out of raw_mesh.ply, the torso kept)",
+    )
     p.add_argument("--hair-scale", type=float, default=1.0, help="multiply hair coordinates (e.g. 0.01 for cm)")
     p.add_argument("--hair-up", choices=["z", "y"], default="z", help="the hair file's up axis (y: x,y,z -> x,-z,y)")
     p.add_argument(
@@ -462,6 +472,20 @@ def main(argv=None):
     target = 0.5 * (lo + hi)
     radius = float(np.linalg.norm(allp - target, axis=1).max())
     cams = add_cameras(bpy, sc, a, target, radius)
+    clutter = None
+    if a.background == "clutter":
+        clutter = synthetic_backdrop.add_clutter(bpy, sc, a.seed, head_v, target)
+        box = synthetic_backdrop.fusion_box(pts, head_v)
+        clutter["fusion_box_m"] = [[round(float(x), 4) for x in b] for b in box]
+        print(f"render_synthetic: clutter background: {clutter}", flush=True)
+
+    def fusion_crop(name: str, d: np.ndarray) -> np.ndarray:
+        """The room is no part of the raw mesh: surfaces outside the fusion box are removed."""
+        if clutter is None:
+            return d
+        pin = next(p for n, _o, p in cams if n == name)
+        return synthetic_backdrop.crop_depth(d, pin.K, pin.R, pin.t, *box)
+
     w, h = sc.render.resolution_x, sc.render.resolution_y
     print(
         f"render_synthetic: {len(counts)} strands, {len(pts)} points, {a.views} views of {w}x{h}, "
@@ -521,7 +545,7 @@ def main(argv=None):
     t_fusion = time.time()
     if a.only_view is None and fusion == "photo":
         for (name, *_), m in zip(cams, masks):
-            g = hairrecon.read_exr(str(out / "gt" / "depth" / f"{name}.exr"))["R"]
+            g = fusion_crop(name, hairrecon.read_exr(str(out / "gt" / "depth" / f"{name}.exr"))["R"])
             write_depth(out / "fusion" / "depth" / f"{name}.exr", photo_fusion_depth(g, m))
         print(f"  fusion depth maps ({a.views} views, from the photographs' depth): {time.time() - t_fusion:.1f} s")
     elif a.only_view is None:
@@ -534,7 +558,11 @@ def main(argv=None):
         for i, (name, ob, *_) in enumerate(cams):
             sc.camera = ob
             ex = render_exr(bpy, sc, out / "_tmp" / f"{name}.exr")
-            depth_exr(out / "fusion" / "depth" / f"{name}.exr", ex["ViewLayer.Depth.Z"])
+            z = ex["ViewLayer.Depth.Z"]
+            if clutter is None:
+                depth_exr(out / "fusion" / "depth" / f"{name}.exr", z)
+            else:
+                write_depth(out / "fusion" / "depth" / f"{name}.exr", fusion_crop(name, np.where(z < 1e9, z, 0.0)))
         print(f"  fusion depth maps ({a.views} views, hair radius {fr * 1e3:.2f} mm): {time.time() - t_fusion:.1f} s")
         # Back to the photographed scene for scene.blend.
         set_radius(hair.data, a.radius_mm * 1e-3)
@@ -582,6 +610,9 @@ def main(argv=None):
         "seed": a.seed,
         "blender": bpy.app.version_string,
     }
+    if clutter is not None:  # absent: the uniform white environment (captures made before the option)
+        meta["background"] = a.background
+        meta["clutter"] = clutter
     (out / "render_info.json").write_text(json.dumps(meta, indent=2))
     if not a.no_blend:
         sc.camera = cams[views[0]][1]
