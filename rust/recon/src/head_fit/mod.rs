@@ -21,6 +21,7 @@
 //! template has beyond the raw mesh: holes, a missing crown, the scalp under hair.
 
 pub mod coarse;
+pub mod compare;
 pub mod icp;
 pub mod score;
 pub mod template;
