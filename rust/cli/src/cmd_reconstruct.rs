@@ -24,9 +24,14 @@ use crate::CmdResult;
 pub struct ReconstructArgs {
     /// Capture folder (or its capture.json).
     capture: PathBuf,
-    /// Output folder: every stage's result goes there, with config.json and report.json.
+    /// Output folder: every stage's result goes there, with config.json and report.json. A run
+    /// clears what an earlier run left there for the stages it makes again.
     #[arg(long)]
     out: PathBuf,
+    /// Write into an output folder that holds files other than a hairrecon run's (by default such
+    /// a folder is refused; only the files this run writes are replaced).
+    #[arg(long)]
+    overwrite: bool,
     /// Start from this stage, reloading what an earlier run saved in --out for the stages before
     /// it: orient2d, orient3d, partings, direction, init or dr.
     #[arg(long, value_name = "STAGE")]
@@ -258,6 +263,7 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
     let plan = Plan {
         from: a.from.as_deref().map(str::parse::<Stage>).transpose()?.unwrap_or(Stage::Orient2d),
         stop_after: a.stop_after.as_deref().map(str::parse::<Stage>).transpose()?,
+        overwrite: a.overwrite,
     };
     if a.print_config {
         println!("{}", serde_json::to_string_pretty(&ConfigFile::new(cfg))?);
