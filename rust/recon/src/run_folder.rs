@@ -1,15 +1,17 @@
 //! A run owns its output folder: before it writes anything, [`claim`] clears what an earlier run
 //! left there that this run makes again, so that no file of another run can pass for this one's.
 //!
-//! - A folder with a `report.json` (or a `config.json`) is a hairrecon run's: the files its report lists for the stages
+//! - A folder with a `report.json` or a `config.json`, or holding only names a run writes (stage
+//!   files copied or linked in for `--from`), is a hairrecon run's: the files its report lists for the stages
 //!   from `--from` on are removed (with the names [`crate::stages::OUTPUTS`] gives those stages, for
 //!   reports that list none); the earlier stages' files stay, for the run to reload.
 //!   Resuming (`--from`) a run of another capture is refused: it would mix two captures' stages.
 //! - A missing or empty folder is fine.
-//! - Any other folder (someone's documents, a capture) is refused unless `Plan::overwrite`, and
-//!   then only the names this run writes are cleared.
+//! - Any other folder (someone's documents, a capture) is refused, naming the files no run
+//!   writes, unless `Plan::overwrite`; then only the names this run writes are cleared.
 //!
-//! The temporary files of an earlier run killed outright (`.NAME.tmp-PID-N`) are removed too.
+//! The temporary files of an earlier run killed outright (`.NAME.tmp-PID-N`) are removed too,
+//! unless their process still runs (on Linux, where that can be seen).
 
 use std::path::{Component, Path};
 
@@ -39,6 +41,7 @@ pub fn claim(out_dir: &Path, plan: &Plan, capture_dir: &Path) -> Result<(), Reco
     let old = Report::load(out_dir);
     // A run killed before its first report (older versions wrote it last) left its config.json.
     let is_run = old.is_some() || ConfigFile::load(&out_dir.join("config.json")).is_ok();
+    names.retain(|n| !written_by_a_run(n));
     if !is_run && !names.is_empty() && !plan.overwrite {
         names.sort();
         let mut found = names.iter().take(3).map(|n| format!("{n:?}")).collect::<Vec<_>>().join(", ");
@@ -77,6 +80,12 @@ pub fn claim(out_dir: &Path, plan: &Plan, capture_dir: &Path) -> Result<(), Reco
     Ok(())
 }
 
+/// Whether a run writes a file or folder of this name at the top of its output folder.
+fn written_by_a_run(name: &str) -> bool {
+    let staged = OUTPUTS.iter().flat_map(|(_, files)| files.iter()).filter_map(|f| f.split('/').next());
+    ["config.json", "report.json"].into_iter().chain(staged).any(|f| f == name)
+}
+
 /// The file names in `dir` (none when it does not exist).
 fn list(dir: &Path) -> Result<Vec<String>, ReconError> {
     match std::fs::read_dir(dir) {
@@ -88,5 +97,12 @@ fn list(dir: &Path) -> Result<Vec<String>, ReconError> {
 
 /// Removes the temporary files an earlier process left in `dir`.
 fn remove_temporaries(dir: &Path) -> Result<(), ReconError> {
-    list(dir)?.into_iter().filter(|n| is_temporary(n)).try_for_each(|n| remove(&dir.join(n)))
+    list(dir)?.into_iter().filter(|n| is_temporary(n) && !writer_runs(n)).try_for_each(|n| remove(&dir.join(n)))
+}
+
+/// Whether the process that named the temporary file `name` still runs (a process id can be
+/// reused: then the file stays, which is harmless).
+fn writer_runs(name: &str) -> bool {
+    let pid = name.rsplit_once(".tmp-").and_then(|(_, tail)| tail.split('-').next());
+    pid.is_some_and(|pid| Path::new("/proc").join(pid).exists())
 }

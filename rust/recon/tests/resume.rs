@@ -96,7 +96,8 @@ fn a_resumed_or_replayed_run_gives_the_same_bytes_as_a_whole_run() {
     // map of a view the capture no longer has, nor the temporary file of a run killed outright).
     let whole = cap.dir.join("whole");
     std::fs::write(whole.join("orient2d/gone.exr"), b"x").unwrap();
-    std::fs::write(whole.join(".strands.hair.tmp-1-2"), b"x").unwrap();
+    // (A process id above any Linux pid_max: no process has it.)
+    std::fs::write(whole.join(".strands.hair.tmp-999999999-2"), b"x").unwrap();
     run("whole", Stage::Orient2d, Some(Stage::Orient2d), &cfg).unwrap();
     let files = files_in(&whole);
     assert_eq!(files, listed(&whole), "the folder holds exactly the files its report lists");
