@@ -73,6 +73,8 @@ pub fn reconstruct(
     }
     let ctx = Context::new(capture, out_dir, progress);
     crate::preflight::check(&ctx)?;
+    // Cancelled while the meshes were checked: the earlier run's files are still whole.
+    progress.check()?;
     crate::run_folder::claim(out_dir, &plan, &capture.dir)?;
     mkdir(out_dir)?;
     let mut report = Report::resumed(&capture.dir, out_dir, from);
