@@ -4,6 +4,10 @@
 //! capture has ground truth, the metric table before and after DR (every stage's scores are in
 //! `report.json`). `--from`/`--stop-after` run part of it; `--config` replays a run's
 //! `config.json`; `--print-config` shows the configuration a run would use and exits.
+//!
+//! SIGINT/SIGTERM ([`crate::interrupt`]) cancel the run at its next safe point: the stages that
+//! finished stay (complete, listed in `report.json`, for `--from`), no result is written, and the
+//! process exits with code 130.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -15,18 +19,24 @@ use hairrecon_core::metric::MetricReport;
 use hairrecon_recon::config::{ConfigFile, ReconstructConfig, Stage};
 use hairrecon_recon::curl::CurlError;
 use hairrecon_recon::progress::Progress;
-use hairrecon_recon::{reconstruct, Plan};
+use hairrecon_recon::{reconstruct, Plan, ReconError};
 use indicatif::ProgressBar;
 
+use crate::interrupt::Interrupt;
 use crate::CmdResult;
 
 #[derive(Debug, clap::Args)]
 pub struct ReconstructArgs {
     /// Capture folder (or its capture.json).
     capture: PathBuf,
-    /// Output folder: every stage's result goes there, with config.json and report.json.
+    /// Output folder: every stage's result goes there, with config.json and report.json. A run
+    /// clears what an earlier run left there for the stages it makes again.
     #[arg(long)]
     out: PathBuf,
+    /// Write into an output folder that holds files other than a hairrecon run's (by default such
+    /// a folder is refused; only the files this run writes are replaced).
+    #[arg(long)]
+    overwrite: bool,
     /// Start from this stage, reloading what an earlier run saved in --out for the stages before
     /// it: orient2d, orient3d, partings, direction, init or dr.
     #[arg(long, value_name = "STAGE")]
@@ -118,6 +128,7 @@ pub struct ReconstructArgs {
 /// (a log file, a pipe), the bars are hidden and a plain line goes to stderr when the stage changes
 /// and then at most every [`LOG_EVERY`].
 struct Bars {
+    interrupt: Interrupt,
     current: Mutex<Option<(String, ProgressBar)>>,
     log: Option<Mutex<(String, Instant)>>,
     start: Instant,
@@ -156,6 +167,9 @@ impl Progress for Bars {
             pb.set_position((fraction.clamp(0.0, 1.0) * STEPS as f32) as u64);
             pb.set_message(message.to_string());
         }
+    }
+    fn cancelled(&self) -> bool {
+        self.interrupt.requested()
     }
 }
 
@@ -258,6 +272,7 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
     let plan = Plan {
         from: a.from.as_deref().map(str::parse::<Stage>).transpose()?.unwrap_or(Stage::Orient2d),
         stop_after: a.stop_after.as_deref().map(str::parse::<Stage>).transpose()?,
+        overwrite: a.overwrite,
     };
     if a.print_config {
         println!("{}", serde_json::to_string_pretty(&ConfigFile::new(cfg))?);
@@ -269,9 +284,15 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
         Capture::load(&a.capture)?
     };
     let log = (!std::io::stderr().is_terminal()).then(|| Mutex::new((String::new(), Instant::now())));
-    let bars = Bars { current: Mutex::new(None), log, start: Instant::now() };
+    let bars = Bars { interrupt: Interrupt::listen(), current: Mutex::new(None), log, start: Instant::now() };
     let out = reconstruct(&capture, &a.out, &cfg, plan, &bars);
     bars.finish();
+    if matches!(out, Err(ReconError::Cancelled(_))) && bars.interrupt.requested() {
+        bars.interrupt.exit(&format!(
+            "no result was written; {} keeps the stages that finished (report.json lists them; --from resumes)",
+            a.out.display()
+        ));
+    }
     let out = out?;
     let r = &out.report;
     println!("stage times: (and the peak memory of the process at the end of each stage)");

@@ -12,6 +12,7 @@ mod cmd_io;
 mod cmd_reconstruct;
 mod cmd_synth;
 mod cmd_toy;
+mod interrupt;
 mod progress;
 
 /// The error type of every subcommand: printed as one line.
@@ -51,6 +52,7 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    interrupt::install();
     let result = match cli.command {
         Command::Eval(a) => cmd_io::eval(a),
         Command::Convert(a) => cmd_io::convert(a),

@@ -181,3 +181,57 @@ fn curl_auto_keeps_straight_hair_and_a_fixed_curl_makes_helices() {
     assert!(read(c.join("strands.hair")) != read(b.join("strands.hair")));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// SIGTERM while orient2d runs, then SIGINT while orient3d runs in the same folder: each run stops
+/// at its next safe point with a message and exit code 130; the folder holds what its report lists
+/// (the stages that finished, complete), no result and no temporary file.
+#[test]
+fn an_interrupted_run_leaves_its_finished_stages_and_no_temporary() {
+    use std::io::{BufRead, BufReader, Read};
+    let dir = tmp("interrupt");
+    let cap = common::write_capture(&dir.join("capture"), 600, 128, 3);
+    let out = dir.join("out");
+    for (signal, stage, finished) in [("-TERM", "orient2d", 0), ("-INT", "orient3d", 1)] {
+        let mut child = Command::new(bin())
+            .arg("reconstruct")
+            .arg(&cap)
+            .args(["--out", out.to_str().unwrap(), "--guides", "60", "--children", "400"])
+            .stderr(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // Not a terminal: one line per stage change on stderr.
+        let mut err = BufReader::new(child.stderr.take().unwrap());
+        let mut text = String::new();
+        while !text.lines().any(|l| l.contains(&format!("] {stage} "))) {
+            assert!(err.read_line(&mut text).unwrap() > 0, "{stage} never started:\n{text}");
+        }
+        let kill = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
+        assert!(kill.success());
+        err.read_to_string(&mut text).unwrap();
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "{signal} at {stage}:\n{text}");
+        assert!(text.contains("interrupted") && text.contains("no result was written"), "{text}");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+        assert_eq!(report["status"], "cancelled", "{report}");
+        let stages = report["stages"].as_array().unwrap();
+        assert_eq!(stages.len(), finished, "{signal} at {stage}: {report}");
+        let mut listed: Vec<String> = ["config.json", "report.json"].map(String::from).to_vec();
+        listed.extend(
+            stages.iter().flat_map(|s| s["files"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().to_string())),
+        );
+        listed.sort();
+        let mut found: Vec<String> = Vec::new();
+        for sub in ["", "orient2d"] {
+            if let Ok(rd) = std::fs::read_dir(out.join(sub)) {
+                for e in rd.flatten().filter(|e| e.path().is_file()) {
+                    found.push(Path::new(sub).join(e.file_name()).to_string_lossy().into_owned());
+                }
+            }
+        }
+        found.sort();
+        assert_eq!(found, listed, "{signal} at {stage}: the folder holds files its report does not list");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -99,9 +99,10 @@ impl Class {
             | ReconError::NotCanonical { .. }
             | ReconError::Implausible { .. }
             | ReconError::EmptyStage { .. } => Class::Capture,
-            ReconError::Config(_) | ReconError::EmptyPlan { .. } | ReconError::MissingStageOutput { .. } => {
-                Class::Input
-            }
+            ReconError::Config(_)
+            | ReconError::EmptyPlan { .. }
+            | ReconError::MissingStageOutput { .. }
+            | ReconError::ForeignOutDir { .. } => Class::Input,
             _ => Class::Other,
         }
     }

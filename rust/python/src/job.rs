@@ -39,6 +39,7 @@ struct Args<'a> {
     hull_trim: Option<bool>,
     parting: Option<bool>,
     curl: Option<&'a str>,
+    overwrite: bool,
 }
 
 fn stage(name: &str, s: Option<&str>) -> PyResult<Option<Stage>> {
@@ -73,6 +74,7 @@ fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
     let plan = Plan {
         from: stage("from_stage", a.from_stage)?.unwrap_or(Stage::Orient2d),
         stop_after: stage("stop_after", a.stop_after)?,
+        overwrite: a.overwrite,
     };
     Ok((c, plan))
 }
@@ -117,9 +119,10 @@ fn output_to_py<'py>(py: Python<'py>, out: &ReconstructOutput) -> PyResult<Bound
 
 fn run_error_to_py(e: RunError) -> PyErr {
     match e {
-        RunError::Cancelled => {
-            Class::Cancelled.raise("reconstruction cancelled by the user; its result was not written")
-        }
+        RunError::Cancelled => Class::Cancelled.raise(
+            "reconstruction cancelled by the user; no result was written (the output folder keeps the stages \
+                 that finished, listed in report.json, for from_stage)",
+        ),
         RunError::Failed(class, m) => class.raise(m),
     }
 }
@@ -132,6 +135,9 @@ fn run_error_to_py(e: RunError) -> PyErr {
 /// view sees where its mask has no hair (by default they are cut at the visual hull before DR);
 /// `parting=False` does not look for partings (by default, where the views see the scalp's skin,
 /// the hair beside it leaves it sideways); `curl` is `"auto"` (the images decide), `"off"` or `"RADIUS_MM,PERIOD_MM,HAND"` (`--curl`).
+/// The run owns `out_dir`: it clears what an earlier run left there for the stages it makes again,
+/// and refuses a folder holding other files (`InputError`) unless `overwrite=True` (`--overwrite`).
+/// A cancelled or failed run keeps the stages it finished (listed in `report.json`), no result.
 ///
 /// ```python
 /// job = hairrecon.Reconstruction("capture/", "out/", guides=2000, children=50000, dr=True)
@@ -155,7 +161,7 @@ pub struct Reconstruction {
 #[pymethods]
 impl Reconstruction {
     #[new]
-    #[pyo3(signature = (capture_dir, out_dir, config=None, from_stage=None, stop_after=None, guides=None, children=None, seed=None, global_opt=None, strand_init=None, dr=None, dr_iters_guides=None, dr_iters_children=None, hull_trim=None, parting=None, curl=None))]
+    #[pyo3(signature = (capture_dir, out_dir, config=None, from_stage=None, stop_after=None, guides=None, children=None, seed=None, global_opt=None, strand_init=None, dr=None, dr_iters_guides=None, dr_iters_children=None, hull_trim=None, parting=None, curl=None, overwrite=false))]
     fn new(
         capture_dir: PathBuf,
         out_dir: PathBuf,
@@ -173,6 +179,7 @@ impl Reconstruction {
         hull_trim: Option<bool>,
         parting: Option<bool>,
         curl: Option<&str>,
+        overwrite: bool,
     ) -> PyResult<Self> {
         let args = Args {
             config,
@@ -189,6 +196,7 @@ impl Reconstruction {
             hull_trim,
             parting,
             curl,
+            overwrite,
         };
         Ok(Self {
             capture_dir,
@@ -263,7 +271,7 @@ impl Reconstruction {
 /// Reconstructs hair strands from a capture folder into `out_dir` (synchronous; the GIL is released
 /// while Rust works). Returns the same dict as `Reconstruction.result()`.
 #[pyfunction]
-#[pyo3(signature = (capture_dir, out_dir, config=None, from_stage=None, stop_after=None, guides=None, children=None, seed=None, global_opt=None, strand_init=None, dr=None, dr_iters_guides=None, dr_iters_children=None, hull_trim=None, parting=None, curl=None))]
+#[pyo3(signature = (capture_dir, out_dir, config=None, from_stage=None, stop_after=None, guides=None, children=None, seed=None, global_opt=None, strand_init=None, dr=None, dr_iters_guides=None, dr_iters_children=None, hull_trim=None, parting=None, curl=None, overwrite=false))]
 fn reconstruct<'py>(
     py: Python<'py>,
     capture_dir: PathBuf,
@@ -282,6 +290,7 @@ fn reconstruct<'py>(
     hull_trim: Option<bool>,
     parting: Option<bool>,
     curl: Option<&str>,
+    overwrite: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(Args {
         config,
@@ -298,6 +307,7 @@ fn reconstruct<'py>(
         hull_trim,
         parting,
         curl,
+        overwrite,
     })?;
     let progress = SharedProgress::new();
     let out = py.allow_threads(|| run(&capture_dir, &out_dir, &opts, &progress).map_err(run_error_to_py))?;

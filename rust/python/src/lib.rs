@@ -2,7 +2,9 @@
 //!
 //! Each function borrows its numpy inputs, releases the GIL while Rust works, and converts the
 //! result back; no algorithm lives here. Errors become `hairrecon.Error` or one of its subclasses
-//! `CaptureError`, `FormatError`, `InputError`, `Cancelled` (see the `error` module). File formats for
+//! `CaptureError`, `FormatError`, `InputError`, `Cancelled` (see the `error` module). Array
+//! arguments take float32/uint32 as they are and convert float64, int64 and lists (the `arrays`
+//! module); a wrong dtype or shape is an `InputError` naming the argument. File formats for
 //! scripts (capture.json, PNG, OpenEXR) are in the `io` module; importing COLMAP, Metashape and
 //! transforms.json calibrations in the `importer` module. Built by maturin with pyo3's `abi3-py311`, so
 //! one wheel serves Blender 4.2+.
@@ -20,15 +22,17 @@ use hairrecon_core::capture::Capture;
 use hairrecon_core::formats;
 use hairrecon_core::metric::{evaluate, MetricOptions};
 use hairrecon_core::{StrandSet, TriMesh};
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+mod arrays;
 mod error;
 mod importer;
 mod io;
 mod job;
 
+use arrays::Shape;
 use error::{capture_err, format_err, guard, input_err, to_py};
 
 /// Strands as numpy arrays: points float32 (N, 3) and counts uint32 (S,).
@@ -40,22 +44,19 @@ pub(crate) fn json_to_py(py: Python<'_>, value: &serde_json::Value) -> PyResult<
     Ok(py.import("json")?.call_method1("loads", (text,))?.unbind())
 }
 
-fn points_from(arr: &PyReadonlyArray2<'_, f32>, what: &str) -> PyResult<Vec<Vec3>> {
-    let view = arr.as_array();
-    if view.ncols() != 3 {
-        return Err(input_err(format!("{what} must have shape (N, 3), got {:?}", view.shape())));
-    }
-    Ok(view.rows().into_iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect())
+const POINTS: Shape = Shape { rows: "N", cols: Some(3) };
+const COUNTS: Shape = Shape { rows: "S", cols: None };
+
+fn points_from(obj: &Bound<'_, PyAny>, name: &str, rows: &'static str) -> PyResult<Vec<Vec3>> {
+    let flat = arrays::floats(obj, name, Shape { rows, ..POINTS })?;
+    Ok(flat.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
 }
 
-fn strands_from(
-    points: &PyReadonlyArray2<'_, f32>,
-    counts: &PyReadonlyArray1<'_, u32>,
-    what: &str,
-) -> PyResult<StrandSet> {
-    let pts = points_from(points, &format!("{what} points"))?;
-    let counts = counts.as_array().to_vec();
-    StrandSet::new(pts, counts).map_err(|e| input_err(format!("{what} strands: {e}")))
+/// A strand set from the arguments named `points` and `counts`.
+fn strands_from(points: (&Bound<'_, PyAny>, &str), counts: (&Bound<'_, PyAny>, &str)) -> PyResult<StrandSet> {
+    let pts = points_from(points.0, points.1, "N")?;
+    let c = arrays::indices(counts.0, counts.1, COUNTS)?;
+    StrandSet::new(pts, c).map_err(|e| input_err(format!("the strands of {} and {}: {e}", points.1, counts.1)))
 }
 
 fn points_to_py<'py>(py: Python<'py>, pts: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {
@@ -76,16 +77,12 @@ fn read_strands<'py>(py: Python<'py>, path: PathBuf, skip_short_strands: bool) -
     Ok((points_to_py(py, &pts)?, PyArray1::from_vec(py, counts)))
 }
 
-/// Writes strands (points float32 (N, 3), counts uint32 (S,)) to a file; the format follows the
-/// extension (.hair, .data, .ply, .obj). The file is written atomically.
+/// Writes strands (points float32 (N, 3), counts uint32 (S,); float64, int64 and lists are
+/// converted) to a file; the format follows the extension (.hair, .data, .ply, .obj). Empty arrays
+/// write a file of no strands. The file is written atomically.
 #[pyfunction]
-fn write_strands(
-    py: Python<'_>,
-    path: PathBuf,
-    points: PyReadonlyArray2<'_, f32>,
-    counts: PyReadonlyArray1<'_, u32>,
-) -> PyResult<()> {
-    let s = strands_from(&points, &counts, "the")?;
+fn write_strands(py: Python<'_>, path: PathBuf, points: &Bound<'_, PyAny>, counts: &Bound<'_, PyAny>) -> PyResult<()> {
+    let s = strands_from((points, "points"), (counts, "counts"))?;
     py.allow_threads(|| guard(|| formats::write_strands(&path, &s).map_err(format_err)))
 }
 
@@ -112,29 +109,25 @@ fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>
     Ok(d)
 }
 
-/// Writes a triangle mesh (binary PLY for .ply, OBJ for .obj), atomically.
+/// Writes a triangle mesh (binary PLY for .ply, OBJ for .obj), atomically: `vertices` float32
+/// (V, 3), `triangles` uint32 (T, 3), `uvs` float32 (V, 2) or None (float64, int64 and lists are
+/// converted).
 #[pyfunction]
 #[pyo3(signature = (path, vertices, triangles, uvs=None))]
 fn write_mesh(
     py: Python<'_>,
     path: PathBuf,
-    vertices: PyReadonlyArray2<'_, f32>,
-    triangles: PyReadonlyArray2<'_, u32>,
-    uvs: Option<PyReadonlyArray2<'_, f32>>,
+    vertices: &Bound<'_, PyAny>,
+    triangles: &Bound<'_, PyAny>,
+    uvs: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
-    let v = points_from(&vertices, "vertices")?;
-    let t = triangles.as_array();
-    if t.ncols() != 3 {
-        return Err(input_err(format!("triangles must have shape (T, 3), got {:?}", t.shape())));
-    }
-    let tris: Vec<[u32; 3]> = t.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-    let uv = match &uvs {
+    let v = points_from(vertices, "vertices", "V")?;
+    let t = arrays::indices(triangles, "triangles", Shape { rows: "T", cols: Some(3) })?;
+    let tris: Vec<[u32; 3]> = t.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect();
+    let uv = match uvs {
         Some(a) => {
-            let a = a.as_array();
-            if a.ncols() != 2 {
-                return Err(input_err(format!("uvs must have shape (V, 2), got {:?}", a.shape())));
-            }
-            Some(a.rows().into_iter().map(|r| Vec2::new(r[0], r[1])).collect())
+            let a = arrays::floats(a, "uvs", Shape { rows: "V", cols: Some(2) })?;
+            Some(a.chunks_exact(2).map(|r| Vec2::new(r[0], r[1])).collect())
         }
         None => None,
     };
@@ -142,21 +135,28 @@ fn write_mesh(
     py.allow_threads(|| guard(|| formats::write_mesh(&path, &mesh).map_err(format_err)))
 }
 
-/// Scores predicted strands against ground truth (the metric of docs/method.md). Returns
+/// Scores predicted strands against ground truth (the metric of docs/method.md). Points are float32
+/// (N, 3), counts uint32 (S,) (float64, int64 and lists are converted). Returns
 /// `{"directed": [...], "undirected": [...]}`, each a list of three dicts (1 mm/10°, 2 mm/20°,
-/// 3 mm/30°) with `dist_mm`, `angle_deg`, `precision`, `recall`, `f1` in percent.
+/// 3 mm/30°) with `dist_mm`, `angle_deg`, `precision`, `recall`, `f1` in percent. No strands on
+/// either side is an `InputError` (a precision or recall of nothing is not a score).
 #[pyfunction]
 #[pyo3(signature = (pred_points, pred_counts, gt_points, gt_counts, step_mm=1.0))]
 fn eval(
     py: Python<'_>,
-    pred_points: PyReadonlyArray2<'_, f32>,
-    pred_counts: PyReadonlyArray1<'_, u32>,
-    gt_points: PyReadonlyArray2<'_, f32>,
-    gt_counts: PyReadonlyArray1<'_, u32>,
+    pred_points: &Bound<'_, PyAny>,
+    pred_counts: &Bound<'_, PyAny>,
+    gt_points: &Bound<'_, PyAny>,
+    gt_counts: &Bound<'_, PyAny>,
     step_mm: f32,
 ) -> PyResult<PyObject> {
-    let pred = strands_from(&pred_points, &pred_counts, "predicted")?;
-    let gt = strands_from(&gt_points, &gt_counts, "ground-truth")?;
+    let pred = strands_from((pred_points, "pred_points"), (pred_counts, "pred_counts"))?;
+    let gt = strands_from((gt_points, "gt_points"), (gt_counts, "gt_counts"))?;
+    for (s, counts, side) in [(&pred, "pred_counts", "predicted"), (&gt, "gt_counts", "ground-truth")] {
+        if s.is_empty() {
+            return Err(input_err(format!("{counts} is empty: there are no {side} strands to score")));
+        }
+    }
     let report = py.allow_threads(|| {
         guard(|| evaluate(&pred, &gt, &MetricOptions { step: step_mm * 1e-3, ..Default::default() }).map_err(input_err))
     })?;

@@ -69,11 +69,14 @@ pub struct Plan {
     pub from: Stage,
     /// The last stage run (`None`: all; without DR in the config, init is the last).
     pub stop_after: Option<Stage>,
+    /// Write into a folder that holds files other than a hairrecon run's (`--overwrite`): by
+    /// default such a folder is refused ([`crate::runner`]).
+    pub overwrite: bool,
 }
 
 impl Default for Plan {
     fn default() -> Self {
-        Self { from: Stage::Orient2d, stop_after: None }
+        Self { from: Stage::Orient2d, stop_after: None, overwrite: false }
     }
 }
 

@@ -35,6 +35,18 @@ pub enum ReconError {
     /// The output folder cannot be created.
     #[error("cannot create the output folder {path}: {source}")]
     OutDir { path: PathBuf, source: std::io::Error },
+    /// The output folder holds files that are not a hairrecon run's (no `report.json`).
+    #[error(
+        "the output folder {path} holds files that are not a hairrecon run's ({found}); choose a new or empty folder, \
+         or pass --overwrite (Python: overwrite=True) to write the run beside them"
+    )]
+    ForeignOutDir { path: PathBuf, found: String },
+    /// `--from` on a folder that holds a run of another capture.
+    #[error(
+        "--from {from}: {path} holds a run of the capture {theirs}, not of {ours}; resuming would mix the two. Run \
+         the whole pipeline (no --from), or give another --out"
+    )]
+    OtherCapture { path: PathBuf, theirs: PathBuf, ours: PathBuf, from: Stage },
     /// A file in the output folder cannot be written or removed.
     #[error("cannot write {path}: {source}")]
     Write { path: PathBuf, source: std::io::Error },

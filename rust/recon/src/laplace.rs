@@ -15,7 +15,7 @@
 //! components are solved together by matrix-free conjugate gradients (a tiny diagonal shift keeps
 //! voxels cut off from every condition well posed), then normalised.
 
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
 
 use glam::Vec3;
@@ -377,9 +377,6 @@ pub fn solve_flow(
 impl FlowField {
     /// Writes the field: a small header then little-endian arrays.
     pub fn save(&self, path: &Path) -> Result<(), PointsError> {
-        let werr = |source| PointsError::Write { path: path.into(), source };
-        let f = std::fs::File::create(path).map_err(werr)?;
-        let mut w = std::io::BufWriter::new(f);
         let mut buf = Vec::with_capacity(self.grid.len() * 21 + 64);
         buf.extend_from_slice(b"HRFLOW01");
         for d in self.grid.dims {
@@ -395,8 +392,7 @@ impl FlowField {
             }
             buf.push(self.label[i]);
         }
-        w.write_all(&buf).map_err(werr)?;
-        w.flush().map_err(werr)
+        crate::oriented_points::write_atomically(path, &[&buf])
     }
 
     /// Reads a field written by [`FlowField::save`].

@@ -45,6 +45,7 @@ pub mod progress;
 pub mod raw_mesh;
 pub mod report;
 pub mod roots;
+pub mod run_folder;
 pub mod runner;
 pub mod stages;
 pub mod views;

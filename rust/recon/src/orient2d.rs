@@ -129,9 +129,7 @@ impl OrientationMap {
         }
         let img = image::Rgb32FImage::from_raw(self.width, self.height, buf)
             .ok_or_else(|| Orient2dError::WriteImage { path: path.into(), msg: "buffer size".into() })?;
-        image::DynamicImage::ImageRgb32F(img)
-            .save(path)
-            .map_err(|e| Orient2dError::WriteImage { path: path.into(), msg: e.to_string() })
+        save_image(&image::DynamicImage::ImageRgb32F(img), image::ImageFormat::OpenExr, path)
     }
 
     /// Reads a map written by [`OrientationMap::save_exr`] or a capture's `gt/orientation` file
@@ -169,8 +167,18 @@ impl OrientationMap {
             let v = (self.confidence[i] * scale).clamp(0.0, 1.0);
             px.0 = hsv(self.theta[i] / PI, v);
         }
-        img.save(path).map_err(|e| Orient2dError::WriteImage { path: path.into(), msg: e.to_string() })
+        save_image(&image::DynamicImage::ImageRgb8(img), image::ImageFormat::Png, path)
     }
+}
+
+/// Encodes `img` in memory, then writes it through a temporary file and a rename (an error or an
+/// interrupt never leaves a half-written image).
+fn save_image(img: &image::DynamicImage, format: image::ImageFormat, path: &Path) -> Result<(), Orient2dError> {
+    let err = |msg: String| Orient2dError::WriteImage { path: path.into(), msg };
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, format).map_err(|e| err(e.to_string()))?;
+    hairrecon_core::formats::atomic_write(path, |w| Ok(std::io::Write::write_all(w, bytes.get_ref())?))
+        .map_err(|e| err(e.kind.to_string()))
 }
 
 fn hsv(h: f32, v: f32) -> [u8; 3] {

@@ -40,16 +40,12 @@ impl OrientedPoints {
 
     /// Writes a binary little-endian PLY: x y z nx ny nz (direction) confidence.
     pub fn save_ply(&self, path: &Path) -> Result<(), PointsError> {
-        let werr = |source| PointsError::Write { path: path.into(), source };
-        let f = std::fs::File::create(path).map_err(werr)?;
-        let mut w = std::io::BufWriter::new(f);
         let header = format!(
             "ply\nformat binary_little_endian 1.0\ncomment hairrecon oriented points\nelement vertex {}\n\
              property float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n\
              property float nz\nproperty float confidence\nend_header\n",
             self.len()
         );
-        w.write_all(header.as_bytes()).map_err(werr)?;
         let mut buf = Vec::with_capacity(self.len() * 28);
         for i in 0..self.len() {
             let (p, d) = (self.positions[i], self.directions[i]);
@@ -57,8 +53,7 @@ impl OrientedPoints {
                 buf.extend_from_slice(&v.to_le_bytes());
             }
         }
-        w.write_all(&buf).map_err(werr)?;
-        w.flush().map_err(werr)
+        write_atomically(path, &[header.as_bytes(), &buf])
     }
 
     /// Reads a PLY written by [`OrientedPoints::save_ply`].
@@ -99,6 +94,13 @@ impl OrientedPoints {
         }
         Ok(out)
     }
+}
+
+/// Writes `parts` one after the other into `path` through a temporary file and a rename, so that
+/// an error or an interrupt never leaves a half-written file.
+pub(crate) fn write_atomically(path: &Path, parts: &[&[u8]]) -> Result<(), PointsError> {
+    hairrecon_core::formats::atomic_write(path, |w| parts.iter().try_for_each(|b| Ok(w.write_all(b)?)))
+        .map_err(|e| PointsError::Write { path: path.into(), source: std::io::Error::other(e.kind.to_string()) })
 }
 
 #[cfg(test)]

@@ -4,6 +4,11 @@
 //!
 //! A run resumed with `--from STAGE` keeps the records of the stages before STAGE from the report
 //! it finds in the folder, so the report always describes every stage of the result.
+//!
+//! The report is also the run's record of itself: it is written when the run starts (status
+//! `running`), again after each stage, and last with the run's outcome (`complete`, `failed` or
+//! `cancelled`); each stage's record lists the files it wrote, which is what the next run in the
+//! folder clears ([`crate::runner`]).
 
 use std::path::Path;
 
@@ -26,6 +31,25 @@ pub struct StageRecord {
     /// The stage's own statistics (its typed stats struct, serialized).
     #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
     pub stats: serde_json::Value,
+    /// The files the stage wrote, relative to the output folder.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
+}
+
+/// Where a run stands.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RunStatus {
+    /// Started, not ended: still running, or killed outright (its stages' files are complete,
+    /// the result is not).
+    Running,
+    /// Every stage of the plan finished (a report without a status is one of these).
+    #[default]
+    Complete,
+    /// A stage failed; `message` says why.
+    Failed,
+    /// The user cancelled the run (Blender, Python, or SIGINT/SIGTERM in the CLI).
+    Cancelled,
 }
 
 /// Scores against the capture's ground truth (all `None` without it).
@@ -63,6 +87,11 @@ pub struct Report {
     pub git_commit: String,
     /// The capture folder.
     pub capture: String,
+    /// Where the run stands; `message` says why it failed or stopped.
+    #[serde(default)]
+    pub status: RunStatus,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub message: Option<String>,
     /// The stages of the result, in order.
     pub stages: Vec<StageRecord>,
     pub scores: Scores,
@@ -77,6 +106,8 @@ impl Report {
             hairrecon_version: VERSION.into(),
             git_commit: GIT_COMMIT.into(),
             capture: capture.display().to_string(),
+            status: RunStatus::Running,
+            message: None,
             stages: Vec::new(),
             scores: Scores::default(),
             warnings: Vec::new(),
@@ -87,9 +118,7 @@ impl Report {
     /// kept), or a new one when there is none.
     pub fn resumed(capture: &Path, out_dir: &Path, from: Stage) -> Self {
         let mut r = Self::new(capture);
-        let old: Option<Report> =
-            std::fs::read(out_dir.join("report.json")).ok().and_then(|b| serde_json::from_slice(&b).ok());
-        if let Some(old) = old {
+        if let Some(old) = Self::load(out_dir) {
             r.stages = old.stages.into_iter().filter(|s| s.stage < from).collect();
             let s = old.scores;
             let keep = |st: Stage| st < from;
@@ -107,12 +136,25 @@ impl Report {
         r
     }
 
-    /// Records a finished stage with its statistics (`&()` for none).
-    pub fn record(&mut self, stage: Stage, seconds: f64, stats: &impl Serialize) {
+    /// The report in `out_dir`, when there is one that reads.
+    pub fn load(out_dir: &Path) -> Option<Self> {
+        std::fs::read(out_dir.join("report.json")).ok().and_then(|b| serde_json::from_slice(&b).ok())
+    }
+
+    /// Records a finished stage with its statistics (`&()` for none) and the files it wrote.
+    pub fn record(&mut self, stage: Stage, seconds: f64, stats: &impl Serialize, files: Vec<String>) {
         let stats = serde_json::to_value(stats).unwrap_or(serde_json::Value::Null);
         self.stages.retain(|s| s.stage != stage);
         let peak_rss_mb = peak_rss_bytes().map(|b| (b as f64 / (1 << 20) as f64).round());
-        self.stages.push(StageRecord { stage, seconds, peak_rss_mb, stats });
+        self.stages.push(StageRecord { stage, seconds, peak_rss_mb, stats, files });
+    }
+
+    /// Every file of the run, relative to the output folder: the stages' and the run's own
+    /// (`config.json`, `report.json`).
+    pub fn files(&self) -> impl Iterator<Item = &str> {
+        ["config.json", "report.json"]
+            .into_iter()
+            .chain(self.stages.iter().flat_map(|s| s.files.iter().map(|f| f.as_str())))
     }
 
     /// (stage name, seconds) in order.

@@ -3,12 +3,17 @@
 //! truth, and a report ([`crate::report`]).
 //!
 //! `--from STAGE` reloads what an earlier run saved in the same folder for the stages before
-//! STAGE; `--stop-after STAGE` stops there. Every run writes `config.json` (the whole
-//! configuration) first and `report.json` last. Outputs of the stages a run makes again are
-//! removed at its start, so that nothing of an earlier run can pass for this one's.
+//! STAGE; `--stop-after STAGE` stops there. A run owns its folder ([`crate::run_folder`]): at its
+//! start it clears what an earlier run left there for the stages it makes again (and refuses a
+//! folder that is not a run's unless `Plan::overwrite`). It writes `report.json` (status
+//! `running`) and `config.json` (the whole configuration) first, the report again after each
+//! stage with the files the stage wrote, and last with the outcome.
 //!
 //! Cancellation: stages check `progress` between views, chunks, solver iterations and DR steps;
-//! a cancelled run returns [`ReconError::Cancelled`] and writes no result (`strands.hair`).
+//! a cancelled run returns [`ReconError::Cancelled`] and writes no result (`strands.hair`). Every
+//! file is written through a temporary file and a rename, so a cancelled or failed run leaves the
+//! stages it finished, complete, and nothing of the stage it was in (what that stage had written
+//! is removed); its report says `cancelled` or `failed` and lists what is there.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -20,7 +25,7 @@ use crate::config::{ConfigFile, Plan, ReconstructConfig, Stage};
 use crate::error::ReconError;
 use crate::eval::Evaluator;
 use crate::progress::Progress;
-use crate::report::Report;
+use crate::report::{Report, RunStatus};
 use crate::stages::direction::DirectionOut;
 use crate::stages::init::InitOut;
 use crate::stages::orient2d::Orient2dOut;
@@ -68,14 +73,26 @@ pub fn reconstruct(
     }
     let ctx = Context::new(capture, out_dir, progress);
     crate::preflight::check(&ctx)?;
+    // Cancelled while the meshes were checked: the earlier run's files are still whole.
+    progress.check()?;
+    crate::run_folder::claim(out_dir, &plan, &capture.dir)?;
     mkdir(out_dir)?;
-    for (_, files) in stages::OUTPUTS.iter().filter(|(s, _)| *s >= from) {
-        files.iter().try_for_each(|f| remove(&out_dir.join(f)))?;
-    }
-    ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
     let mut report = Report::resumed(&capture.dir, out_dir, from);
+    report.save(&out_dir.join("report.json"))?;
+    ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
     // The report is written whatever happens: a cancelled or failed run lists the stages it finished.
     let run = run_stages(&ctx, cfg, &mut report, from, last);
+    (report.status, report.message) = match &run {
+        Ok(()) => (RunStatus::Complete, None),
+        Err(e) => {
+            // What the unfinished stage wrote goes (as far as it can: the error to report is `e`).
+            for f in ctx.take_written() {
+                let _ = remove(&ctx.path(&f));
+            }
+            let status = if matches!(e, ReconError::Cancelled(_)) { RunStatus::Cancelled } else { RunStatus::Failed };
+            (status, Some(e.to_string()))
+        }
+    };
     let saved = report.save(&out_dir.join("report.json"));
     run?;
     saved?;
@@ -104,7 +121,7 @@ fn run_stages(
     let maps = if runs(Stage::Orient2d) {
         let o = stages::orient2d::run(ctx, cfg)?;
         o.save(ctx, cfg.write_pictures)?;
-        report.record(Stage::Orient2d, t.elapsed().as_secs_f64(), &());
+        finished(ctx, report, Stage::Orient2d, t, &())?;
         report.scores.orient2d = eval.orient2d(&o.maps)?;
         o.maps
     } else {
@@ -118,7 +135,7 @@ fn run_stages(
     let points = if runs(Stage::Orient3d) {
         let o = stages::orient3d::run(ctx, cfg, &maps)?;
         o.save(ctx)?;
-        report.record(Stage::Orient3d, t.elapsed().as_secs_f64(), &());
+        finished(ctx, report, Stage::Orient3d, t, &())?;
         report.scores.orient3d = eval.points(ctx.raw()?, &o.points)?;
         Some(o.points)
     } else if runs(Stage::Direction) {
@@ -134,7 +151,7 @@ fn run_stages(
     let scalp = if runs(Stage::Partings) {
         let o = stages::partings::run(ctx, cfg)?;
         o.save(ctx)?;
-        report.record(Stage::Partings, t.elapsed().as_secs_f64(), &o.stats);
+        finished(ctx, report, Stage::Partings, t, &o.stats)?;
         o.scalp
     } else {
         PartingsOut::load(ctx, from, &cfg.parting)?.scalp
@@ -148,7 +165,7 @@ fn run_stages(
         Some(points) => {
             let o = stages::direction::run(ctx, cfg, &points, &scalp)?;
             o.save(ctx)?;
-            report.record(Stage::Direction, t.elapsed().as_secs_f64(), &o.stats);
+            finished(ctx, report, Stage::Direction, t, &o.stats)?;
             report.scores.direction = eval.directions(ctx.raw()?, &o.directed)?;
             o.directed
         }
@@ -163,7 +180,7 @@ fn run_stages(
     let init = if runs(Stage::Init) {
         let o = stages::init::run(ctx, cfg, &directed, &scalp, &maps)?;
         o.save(ctx)?;
-        report.record(Stage::Init, t.elapsed().as_secs_f64(), &o.stats);
+        finished(ctx, report, Stage::Init, t, &o.stats)?;
         report.warnings.extend(o.stats.hull_warning.clone());
         if let (Some(axes), Some(c)) = (&o.seen_axes, o.info.curl) {
             report.scores.axes = eval.axes(ctx.raw()?, axes, &c)?;
@@ -177,18 +194,34 @@ fn run_stages(
     };
     drop(directed);
     if last == Stage::Init {
-        write_strands(ctx.path("guides.hair"), &init.guides)?;
-        write_strands(ctx.path("strands.hair"), &init.children)?;
+        write_strands(ctx.output("guides.hair"), &init.guides)?;
+        write_strands(ctx.output("strands.hair"), &init.children)?;
+        if let Some(r) = report.stages.iter_mut().find(|r| r.stage == Stage::Init) {
+            r.files.extend(ctx.take_written());
+        }
         return Ok(());
     }
 
     let t = Instant::now();
     let o = stages::dr::run(ctx, cfg, &init, &maps, &scalp)?;
     o.save(ctx)?;
-    report.record(Stage::Dr, t.elapsed().as_secs_f64(), &o.stats);
+    finished(ctx, report, Stage::Dr, t, &o.stats)?;
     ctx.progress.update("metrics", 0.5, "scoring strands");
     report.scores.dr_guides = eval.strands(ctx.raw()?, &o.guides)?;
     report.scores.dr_strands = eval.strands(ctx.raw()?, &o.children)?;
     ctx.progress.update("dr", 1.0, "");
     Ok(())
+}
+
+/// Records a finished stage (its time, statistics and the files it wrote) and saves the report,
+/// so that a run killed outright still says what it finished.
+fn finished(
+    ctx: &Context<'_>,
+    report: &mut Report,
+    stage: Stage,
+    start: Instant,
+    stats: &impl serde::Serialize,
+) -> Result<(), ReconError> {
+    report.record(stage, start.elapsed().as_secs_f64(), stats, ctx.take_written());
+    report.save(&ctx.path("report.json"))
 }

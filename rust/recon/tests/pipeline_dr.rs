@@ -159,7 +159,7 @@ fn a_run_cancelled_during_dr_writes_no_strands_and_resumes_from_its_init() {
     }
     // The init stage had finished: its strands are saved whole, and DR resumes from them.
     assert!(out_dir.join("init_strands.hair").is_file() && out_dir.join("init.json").is_file());
-    let resumed = Plan { from: hairrecon_recon::Stage::Dr, stop_after: None };
+    let resumed = Plan { from: hairrecon_recon::Stage::Dr, ..Default::default() };
     let out = reconstruct(&cap, &out_dir, &opts, resumed, &NoProgress).unwrap();
     assert!(out.strands.as_ref().is_some_and(|p| p.is_file()));
     assert_eq!(out.report.stages.len(), 6, "the resumed report keeps the stages before DR");

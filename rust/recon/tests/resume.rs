@@ -1,18 +1,60 @@
 //! A run resumed from a saved stage (`--from`) or replayed from its `config.json` gives the same
 //! bytes as one whole run, on the synthetic capture of `common/mod.rs`; resuming without the
 //! earlier stages' files names the stage to run; an imported capture (not yet in the canonical frame) is
-//! refused.
+//! refused. A run owns its folder: what an earlier run left there is cleared, a cancelled run
+//! leaves the stages it finished and nothing else, and a folder that is not a run's is refused.
 
 mod common;
 
 use hairrecon_core::capture::Capture;
-use hairrecon_recon::progress::NoProgress;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use hairrecon_recon::progress::{NoProgress, Progress};
+use hairrecon_recon::report::{Report, RunStatus};
 use hairrecon_recon::{reconstruct, Plan, ReconError, ReconstructConfig, Stage};
 
 fn capture(name: &str) -> Capture {
     let dir = std::env::temp_dir().join(format!("hairrecon-resume-{name}-{}", std::process::id()));
     common::write_capture(&dir, 600, 128, 7);
     Capture::load(&dir).unwrap()
+}
+
+/// Every file under `dir`, relative to it, sorted.
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        if p.is_dir() {
+            out.extend(files_in(&p).into_iter().map(|f| format!("{name}/{f}")));
+        } else {
+            out.push(name);
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The files the folder's report lists, sorted.
+fn listed(dir: &Path) -> Vec<String> {
+    let mut files: Vec<String> = Report::load(dir).unwrap().files().map(String::from).collect();
+    files.sort();
+    files
+}
+
+/// Cancels the run when `stage` starts (the user's cancel in Blender, or SIGINT in the CLI).
+struct CancelAt(&'static str, AtomicBool);
+
+impl Progress for CancelAt {
+    fn update(&self, stage: &str, _fraction: f32, _message: &str) {
+        if stage == self.0 {
+            self.1.store(true, Ordering::SeqCst);
+        }
+    }
+    fn cancelled(&self) -> bool {
+        self.1.load(Ordering::SeqCst)
+    }
 }
 
 #[test]
@@ -22,7 +64,7 @@ fn a_resumed_or_replayed_run_gives_the_same_bytes_as_a_whole_run() {
     let mut cfg = ReconstructConfig { guides: 100, children: 600, mvs, seed: 3, ..Default::default() };
     (cfg.dr_options.iterations_guides, cfg.dr_options.iterations_children) = (6, 3);
     let run = |dir: &str, from: Stage, stop_after: Option<Stage>, cfg: &ReconstructConfig| {
-        reconstruct(&cap, &cap.dir.join(dir), cfg, Plan { from, stop_after }, &NoProgress)
+        reconstruct(&cap, &cap.dir.join(dir), cfg, Plan { from, stop_after, overwrite: false }, &NoProgress)
     };
     let read = |dir: &str, f: &str| std::fs::read(cap.dir.join(dir).join(f)).unwrap();
     run("whole", Stage::Orient2d, None, &cfg).unwrap();
@@ -48,6 +90,69 @@ fn a_resumed_or_replayed_run_gives_the_same_bytes_as_a_whole_run() {
     run("other", Stage::Init, None, &other).unwrap_err();
     run("other", Stage::Orient2d, None, &other).unwrap();
     assert!(read("other", "strands.hair") != read("whole", "strands.hair"));
+    assert_eq!(files_in(&cap.dir.join("whole")), listed(&cap.dir.join("whole")));
+
+    // `--stop-after orient2d` into the folder of a whole run leaves none of that run's files (nor the
+    // map of a view the capture no longer has, nor the temporary file of a run killed outright).
+    let whole = cap.dir.join("whole");
+    std::fs::write(whole.join("orient2d/gone.exr"), b"x").unwrap();
+    // (A process id above any Linux pid_max: no process has it.)
+    std::fs::write(whole.join(".strands.hair.tmp-999999999-2"), b"x").unwrap();
+    run("whole", Stage::Orient2d, Some(Stage::Orient2d), &cfg).unwrap();
+    let files = files_in(&whole);
+    assert_eq!(files, listed(&whole), "the folder holds exactly the files its report lists");
+    assert!(files.contains(&"orient2d/maps.bin".to_string()) && !files.iter().any(|f| f.ends_with(".hair")));
+    let report = Report::load(&whole).unwrap();
+    assert_eq!((report.status, report.stages.len()), (RunStatus::Complete, 1));
+
+    // A run cancelled when orient3d starts, in the folder of a whole run: the orient2d it finished,
+    // nothing of the earlier run, no temporary file; the report says so.
+    let replayed = cap.dir.join("replayed");
+    let cancel = CancelAt("orient3d", AtomicBool::new(false));
+    let e = reconstruct(&cap, &replayed, &cfg, Plan::default(), &cancel).unwrap_err();
+    assert!(matches!(e, ReconError::Cancelled(_)), "{e}");
+    let files = files_in(&replayed);
+    assert_eq!(files, listed(&replayed));
+    assert!(!files.iter().any(|f| f.ends_with(".hair") || f.ends_with(".ply")), "{files:?}");
+    let report = Report::load(&replayed).unwrap();
+    assert_eq!(report.status, RunStatus::Cancelled);
+    assert_eq!(report.stages.iter().map(|s| s.stage).collect::<Vec<_>>(), [Stage::Orient2d]);
+    assert!(report.scores.init_strands.is_none() && report.scores.dr_strands.is_none());
+    // ... and it resumes from there.
+    run("replayed", Stage::Orient3d, Some(Stage::Orient3d), &cfg).unwrap();
+    assert!(read("replayed", "points3d.ply") == read("resumed", "points3d.ply"));
+    let _ = std::fs::remove_dir_all(&cap.dir);
+}
+
+#[test]
+fn a_folder_that_is_not_a_runs_is_refused_unless_overwrite_is_given() {
+    let cap = capture("foreign");
+    let out_dir = cap.dir.join("documents");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    std::fs::write(out_dir.join("notes.txt"), b"mine").unwrap();
+    let plan = |overwrite| Plan { stop_after: Some(Stage::Orient2d), overwrite, ..Default::default() };
+    let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), plan(false), &NoProgress).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, ReconError::ForeignOutDir { .. }), "{msg}");
+    assert!(msg.contains("notes.txt") && msg.contains("--overwrite"), "{msg}");
+    assert_eq!(files_in(&out_dir), ["notes.txt"], "a refused run wrote or removed something");
+    reconstruct(&cap, &out_dir, &ReconstructConfig::default(), plan(true), &NoProgress).unwrap();
+    assert_eq!(std::fs::read(out_dir.join("notes.txt")).unwrap(), b"mine");
+    // Now a run's folder: the next run clears only the files its report lists, and only inside it.
+    let mut report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap();
+    report["stages"][0]["files"].as_array_mut().unwrap().push("../capture.json".into());
+    std::fs::write(out_dir.join("report.json"), report.to_string()).unwrap();
+    reconstruct(&cap, &out_dir, &ReconstructConfig::default(), plan(false), &NoProgress).unwrap();
+    assert!(cap.dir.join("capture.json").exists() && out_dir.join("notes.txt").exists());
+    // Resuming the run of another capture would mix the two.
+    let mut report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("report.json")).unwrap()).unwrap();
+    report["capture"] = out_dir.display().to_string().into();
+    std::fs::write(out_dir.join("report.json"), report.to_string()).unwrap();
+    let resume = Plan { from: Stage::Orient3d, stop_after: Some(Stage::Orient3d), overwrite: false };
+    let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), resume, &NoProgress).unwrap_err();
+    assert!(matches!(e, ReconError::OtherCapture { .. }) && e.to_string().contains("mix"), "{e}");
     let _ = std::fs::remove_dir_all(&cap.dir);
 }
 
@@ -59,14 +164,14 @@ fn resuming_without_the_earlier_stages_names_the_stage_to_run() {
         &cap,
         &out_dir,
         &ReconstructConfig::default(),
-        Plan { from: Stage::Init, stop_after: None },
+        Plan { from: Stage::Init, ..Default::default() },
         &NoProgress,
     )
     .unwrap_err();
     let msg = e.to_string();
     assert!(matches!(e, ReconError::MissingStageOutput { needs: Stage::Orient2d, .. }), "{msg}");
     assert!(msg.contains("maps.bin") && msg.contains("--from orient2d"), "{msg}");
-    let plan = Plan { from: Stage::Dr, stop_after: Some(Stage::Init) };
+    let plan = Plan { from: Stage::Dr, stop_after: Some(Stage::Init), overwrite: false };
     let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), plan, &NoProgress).unwrap_err();
     assert!(matches!(e, ReconError::EmptyPlan { .. }), "{e}");
     let _ = std::fs::remove_dir_all(&cap.dir);

@@ -231,6 +231,9 @@ fn unknown_extension(path: &Path, ext: &str, supported: &'static str) -> FormatE
 /// Writes a file atomically: `write` fills a temporary file in the same folder, which is then
 /// flushed and renamed over `path`. If `write` or any step fails, the temporary file is removed and
 /// `path` is left as it was (absent, or its old content). The error names `path`.
+///
+/// The temporary file is named `.NAME.tmp-PID-N` (see [`is_temporary`]) and listed while it exists,
+/// so that a process stopped by a signal can remove it ([`remove_temporaries`]).
 pub fn atomic_write<F>(path: impl AsRef<Path>, write: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<File>) -> Result<()>,
@@ -246,6 +249,7 @@ where
     };
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let tmp = dir.join(format!(".{}.tmp-{}-{}", name.to_string_lossy(), std::process::id(), n));
+    live_temporaries(|t| t.push(tmp.clone()));
     let result = (|| -> Result<()> {
         let file = File::create(&tmp)?;
         let mut w = BufWriter::new(file);
@@ -259,7 +263,37 @@ where
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
+    live_temporaries(|t| t.retain(|p| *p != tmp));
     result.map_err(|e| e.in_file(path))
+}
+
+/// Runs `f` on the list of the temporary files [`atomic_write`] is filling now.
+fn live_temporaries(f: impl FnOnce(&mut Vec<PathBuf>)) {
+    static LIVE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let mut live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+    f(&mut live);
+}
+
+/// Removes the temporary files that [`atomic_write`] calls are filling now, and returns how many:
+/// for a process about to exit on a signal (their writes never finish, and no `path` is touched).
+pub fn remove_temporaries() -> usize {
+    let mut n = 0;
+    live_temporaries(|t| {
+        for p in t.drain(..) {
+            n += usize::from(std::fs::remove_file(&p).is_ok());
+        }
+    });
+    n
+}
+
+/// Whether a file name is that of an [`atomic_write`] temporary (`.NAME.tmp-PID-N`): what a
+/// process killed outright (SIGKILL, power loss) leaves behind.
+pub fn is_temporary(file_name: &str) -> bool {
+    let Some(rest) = file_name.strip_prefix('.') else { return false };
+    let Some((_, tail)) = rest.rsplit_once(".tmp-") else { return false };
+    let mut parts = tail.split('-');
+    let digits = |p: Option<&str>| p.is_some_and(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()));
+    digits(parts.next()) && digits(parts.next()) && parts.next().is_none()
 }
 
 #[cfg(test)]
@@ -284,6 +318,14 @@ mod tests {
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn temporary_names_are_recognized() {
+        assert!(is_temporary(".strands.hair.tmp-4242-0") && is_temporary(".a.tmp-1-23"));
+        for name in ["strands.hair", ".hidden", ".a.tmp-", ".a.tmp-1", ".a.tmp-x-1", "a.tmp-1-2", ".a.tmp-1-2-3"] {
+            assert!(!is_temporary(name), "{name}");
+        }
     }
 
     #[test]

@@ -36,7 +36,7 @@ pub fn run(
 
 impl DirectionOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
-        Ok(self.directed.save_ply(&ctx.path(FILE))?)
+        Ok(self.directed.save_ply(&ctx.output(FILE))?)
     }
 
     pub fn load(ctx: &Context<'_>, from: Stage) -> Result<Self, ReconError> {

@@ -104,10 +104,10 @@ pub fn run(
 
 impl DrOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
-        write_loss_csv(&ctx.path("loss.csv"), &self.loss_curve)?;
-        write_loss_png(&ctx.path("loss.png"), &self.loss_curve)?;
-        write_strands(ctx.path("guides.hair"), &self.guides)?;
-        write_strands(ctx.path("strands.hair"), &self.children)?;
+        write_loss_csv(&ctx.output("loss.csv"), &self.loss_curve)?;
+        write_loss_png(&ctx.output("loss.png"), &self.loss_curve)?;
+        write_strands(ctx.output("guides.hair"), &self.guides)?;
+        write_strands(ctx.output("strands.hair"), &self.children)?;
         Ok(())
     }
 }

@@ -120,7 +120,7 @@ pub fn run(
     let scalp_err = |source| ReconError::Scalp { path: ctx.capture.scalp_mesh.clone().unwrap_or_default(), source };
     let guide_roots = sample_roots(scalp, cfg.guides.max(1), cfg.seed).map_err(scalp_err)?;
     let child_roots = sample_roots(scalp, cfg.children.max(1), cfg.seed.wrapping_add(1)).map_err(scalp_err)?;
-    guide_roots.to_points().save_ply(&ctx.path("roots.ply"))?;
+    guide_roots.to_points().save_ply(&ctx.output("roots.ply"))?;
     let roots = (&guide_roots, &child_roots);
     let mut stats = InitStats::default();
     let mut seen_axes = None;
@@ -152,12 +152,12 @@ pub fn run(
                 if co.onto_axes {
                     onto_axes(directed, &mut axes, &c);
                 }
-                axes.save_ply(&ctx.path("points_axes.ply"))?;
+                axes.save_ply(&ctx.output("points_axes.ply"))?;
                 Some(axes)
             }
         };
         let g = grow_from(ctx, cfg, scalp, roots, axes.as_ref().unwrap_or(directed))?;
-        g.flow.save(&ctx.path("flow.bin"))?;
+        g.flow.save(&ctx.output("flow.bin"))?;
         (stats.parting_points_cleared, stats.laplace, stats.grow, stats.smooth) =
             (g.cleared, Some(g.laplace), Some(g.grow), Some(g.smooth));
         match curl {
@@ -214,9 +214,9 @@ fn trim(
 
 impl InitOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
-        write_strands(ctx.path(GUIDES), &self.guides)?;
-        write_strands(ctx.path(CHILDREN), &self.children)?;
-        write_json(&ctx.path(INFO), &self.info)
+        write_strands(ctx.output(GUIDES), &self.guides)?;
+        write_strands(ctx.output(CHILDREN), &self.children)?;
+        write_json(&ctx.output(INFO), &self.info)
     }
 
     pub fn load(ctx: &Context<'_>, from: Stage) -> Result<Self, ReconError> {

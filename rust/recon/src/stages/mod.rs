@@ -15,7 +15,7 @@ pub mod orient2d;
 pub mod orient3d;
 pub mod partings;
 
-use std::cell::OnceCell;
+use std::cell::{OnceCell, RefCell};
 use std::path::{Path, PathBuf};
 
 use hairrecon_core::capture::Capture;
@@ -26,8 +26,9 @@ use crate::config::Stage;
 use crate::error::ReconError;
 use crate::progress::Progress;
 
-/// Files each stage writes (besides `orient2d/<view>.exr|png`, overwritten when it runs again);
-/// `guides.hair` and `strands.hair` are the last strand stage's.
+/// Files each stage writes (besides `orient2d/<view>.exr|png`); `guides.hair` and `strands.hair`
+/// are the last strand stage's. A run lists the files it actually wrote in `report.json`; this list
+/// is what a report without that list (or an unreadable one) is assumed to have.
 pub const OUTPUTS: [(Stage, &[&str]); 6] = [
     (Stage::Orient2d, &["orient2d/maps.bin"]),
     (Stage::Orient3d, &["points3d.ply"]),
@@ -43,6 +44,8 @@ pub struct Context<'a> {
     pub capture: &'a Capture,
     pub out_dir: &'a Path,
     pub progress: &'a dyn Progress,
+    /// The files written since [`Context::take_written`] was last called, relative to `out_dir`.
+    written: RefCell<Vec<String>>,
     raw: OnceCell<Bvh>,
     inner: OnceCell<Bvh>,
 }
@@ -55,12 +58,27 @@ impl std::fmt::Debug for Context<'_> {
 
 impl<'a> Context<'a> {
     pub fn new(capture: &'a Capture, out_dir: &'a Path, progress: &'a dyn Progress) -> Self {
-        Self { capture, out_dir, progress, raw: OnceCell::new(), inner: OnceCell::new() }
+        Self { capture, out_dir, progress, written: RefCell::default(), raw: OnceCell::new(), inner: OnceCell::new() }
     }
 
     /// A file in the output folder.
     pub fn path(&self, name: &str) -> PathBuf {
         self.out_dir.join(name)
+    }
+
+    /// A file in the output folder that the running stage writes: listed, so that the run's report
+    /// names every file of the result (and the next run in the folder knows what to clear).
+    pub fn output(&self, name: &str) -> PathBuf {
+        let mut w = self.written.borrow_mut();
+        if !w.iter().any(|n| n == name) {
+            w.push(name.to_string());
+        }
+        self.path(name)
+    }
+
+    /// The files [`Context::output`] handed out since the last call.
+    pub fn take_written(&self) -> Vec<String> {
+        self.written.take()
     }
 
     /// The raw mesh (the hair's outer surface), with its BVH.

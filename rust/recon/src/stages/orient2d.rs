@@ -42,15 +42,14 @@ pub fn run(ctx: &Context<'_>, cfg: &ReconstructConfig) -> Result<Orient2dOut, Re
 impl Orient2dOut {
     /// Writes the maps (see the module doc); `pictures` adds the PNGs.
     pub fn save(&self, ctx: &Context<'_>, pictures: bool) -> Result<(), ReconError> {
-        let dir = ctx.path("orient2d");
-        mkdir(&dir)?;
+        mkdir(&ctx.path("orient2d"))?;
         for (v, map) in ctx.capture.views.iter().zip(&self.maps) {
-            map.save_exr(&dir.join(format!("{}.exr", v.name)))?;
+            map.save_exr(&ctx.output(&format!("orient2d/{}.exr", v.name)))?;
             if pictures {
-                map.save_png(&dir.join(format!("{}.png", v.name)))?;
+                map.save_png(&ctx.output(&format!("orient2d/{}.png", v.name)))?;
             }
         }
-        let path = dir.join("maps.bin");
+        let path = ctx.output("orient2d/maps.bin");
         hairrecon_core::formats::atomic_write(&path, |w| {
             w.write_all(MAGIC)?;
             w.write_all(&(self.maps.len() as u32).to_le_bytes())?;

@@ -38,7 +38,7 @@ pub fn run(ctx: &Context<'_>, cfg: &ReconstructConfig, maps: &[OrientationMap]) 
 
 impl Orient3dOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
-        Ok(self.points.save_ply(&ctx.path(FILE))?)
+        Ok(self.points.save_ply(&ctx.output(FILE))?)
     }
 
     pub fn load(ctx: &Context<'_>, from: Stage) -> Result<Self, ReconError> {

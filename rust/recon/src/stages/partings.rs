@@ -46,17 +46,16 @@ pub fn run(ctx: &Context<'_>, cfg: &ReconstructConfig) -> Result<PartingsOut, Re
 
 impl PartingsOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
-        let path = ctx.path(FILE);
         match self.scalp.partings() {
             Some(p) => OrientedPoints {
                 positions: p.skin().to_vec(),
                 directions: p.skin().iter().map(|&q| self.scalp.closest_root(q).normal).collect(),
                 confidence: vec![1.0; p.skin().len()],
             }
-            .save_ply(&path)?,
-            None => remove(&path)?,
+            .save_ply(&ctx.output(FILE))?,
+            None => remove(&ctx.path(FILE))?,
         }
-        write_json(&ctx.path(STATS), &self.stats)
+        write_json(&ctx.output(STATS), &self.stats)
     }
 
     /// The scalp with the partings an earlier run saved (none when it saved no file).
