@@ -6,18 +6,15 @@
 //! `head_fit.json`. A capture that has a scalp already (a synthetic one) gets, instead, the fitted
 //! scalp's distance to it: the stage's metric.
 //!
-//! The template: `--template`, else the repository's `blend_fixtures/head.ply`, found from where
-//! this program was built (`CARGO_MANIFEST_DIR/../../blend_fixtures`; a binary moved away from its
-//! source tree needs `--template`). Its scalp (the triangles the fit ignores, since hair hides them)
-//! is `--scalp`, else `scalp.ply` beside the template when it exists.
+//! The template: `--template` with its scalp (`--scalp`, else `scalp.ply` beside it), else the
+//! bundled head and scalp (`blend_fixtures/`, built into the library). The scalp's triangles are
+//! the ones the fit ignores, since hair hides them.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use hairrecon_core::capture::CaptureSpec;
-use hairrecon_core::TriMesh;
-use hairrecon_recon::head_fit::compare::surface_error;
-use hairrecon_recon::head_fit::{fit_similarity, transform_mesh, FitOptions, HeadTemplate};
+use hairrecon_recon::head_fit::capture_fit::{fit_capture, write_into_capture, Template};
+use hairrecon_recon::head_fit::FitOptions;
 use serde_json::json;
 
 use crate::CmdResult;
@@ -26,11 +23,11 @@ use crate::CmdResult;
 pub struct FitHeadArgs {
     /// Capture folder (or its capture.json): its raw mesh and its cameras are used.
     pub capture: PathBuf,
-    /// Head template in the canonical frame (.ply or .obj). Default: the repository's
-    /// blend_fixtures/head.ply.
+    /// Head template in the canonical frame (.ply or .obj). Default: the bundled head (the
+    /// repository's blend_fixtures/head.ply, built in).
     #[arg(long)]
     pub template: Option<PathBuf>,
-    /// The template's scalp, left out of the fit. Default: scalp.ply beside the template, if any.
+    /// The template's scalp, left out of the fit. Default: scalp.ply beside --template.
     #[arg(long)]
     pub scalp: Option<PathBuf>,
     /// Ignore the cameras (fit from the mesh alone).
@@ -47,59 +44,31 @@ pub struct FitHeadArgs {
     pub max_exposed: f64,
 }
 
-/// The repository's head template, from where this program was built.
-pub fn default_template() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures/head.ply")
-}
-
 pub fn run(args: FitHeadArgs) -> CmdResult {
     let t0 = Instant::now();
     let json_path = if args.capture.is_dir() { args.capture.join("capture.json") } else { args.capture.clone() };
-    let text = std::fs::read_to_string(&json_path).map_err(|e| format!("cannot read {}: {e}", json_path.display()))?;
-    let spec = CaptureSpec::from_json(serde_json::from_str(&text)?, &json_path)?;
-    let cameras = spec.validate(&json_path)?;
-    let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let raw_path = dir.join(&spec.raw_mesh);
-    let raw = hairrecon_core::read_mesh(&raw_path)?;
-
-    let template_path = args.template.clone().unwrap_or_else(default_template);
-    let head = hairrecon_core::read_mesh(&template_path).map_err(|e| {
-        format!("cannot read the head template {}: {e}; give one with --template", template_path.display())
-    })?;
-    let scalp_path = args.scalp.clone().or_else(|| {
-        let p = template_path.with_file_name("scalp.ply");
-        p.is_file().then_some(p)
-    });
-    let scalp = scalp_path.as_ref().map(hairrecon_core::read_mesh).transpose()?;
-    let template = HeadTemplate::new(&head, scalp.as_ref(), args.samples, 7)
-        .ok_or_else(|| format!("the head template {} has no area outside its scalp", template_path.display()))?;
-
-    let opts = FitOptions { max_exposed_fraction: args.max_exposed, ..FitOptions::default() };
-    let cams = (!args.no_cameras).then_some(cameras.as_slice());
-    let fit = fit_similarity(&template, &raw, cams, &opts)?;
-    let s = fit.to_canonical;
-    let to_capture = s.inverse();
-    let (fitted_head, fitted_scalp) =
-        (transform_mesh(&head, &to_capture), scalp.as_ref().map(|m| transform_mesh(m, &to_capture)));
-    // The metric, where the capture knows its scalp: canonical millimetres.
-    let scalp_error = match (&spec.scalp_mesh, &fitted_scalp) {
-        (Some(given), Some(fitted)) => {
-            let given = hairrecon_core::read_mesh(dir.join(given))?;
-            surface_error(fitted, &given, 20_000).map(|e| {
-                let mm = s.scale * 1e3;
-                json!({"mean_mm": e.mean * mm, "p95_mm": e.p95 * mm, "max_mm": e.max * mm})
-            })
+    let (template, template_path, scalp_path) = match &args.template {
+        Some(head) => {
+            let scalp = args.scalp.clone().unwrap_or_else(|| head.with_file_name("scalp.ply"));
+            let t = Template::from_files(head, &scalp).map_err(|e| {
+                format!("cannot read the head template {} with its scalp {}: {e}", head.display(), scalp.display())
+            })?;
+            (t, Some(head.clone()), Some(scalp))
         }
-        _ => None,
+        None => (Template::bundled(), None, None),
     };
+    let opts = FitOptions { max_exposed_fraction: args.max_exposed, ..FitOptions::default() };
+    let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras)?;
+    let (fit, spec) = (&fitted.fit, &fitted.spec);
+    let s = fit.to_canonical;
     let (axis, degrees) = s.axis_angle_degrees();
     let rows = |m: glam::DMat3| {
         let t = m.transpose();
         [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
     };
     let out = json!({
-        "raw_mesh": raw_path,
-        "template": template_path,
+        "raw_mesh": spec.raw_mesh,
+        "template": template_path.map_or_else(|| "bundled".to_string(), |p| p.display().to_string()),
         "scalp": scalp_path,
         "units": spec.units,
         "frame": spec.frame.as_deref().unwrap_or("canonical"),
@@ -116,39 +85,16 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
         "exposed_fraction": fit.score.outside,
         "cost": fit.score.cost,
         "runner_up_cost": fit.runner_up_cost,
-        "cameras_given": cams.map_or(0, <[_]>::len),
-        "scalp_error_against_the_captures_scalp": scalp_error,
+        "cameras_used": !args.no_cameras,
+        "scalp_error_against_the_captures_scalp": fitted.scalp_error.map(|e| json!({
+            "mean_mm": e.mean * 1e3, "p95_mm": e.p95 * 1e3, "max_mm": e.max * 1e3
+        })),
         "seconds": t0.elapsed().as_secs_f64(),
     });
     let text = serde_json::to_string_pretty(&out)?;
     if args.write {
-        write_into_capture(&json_path, spec, &fitted_head, fitted_scalp.as_ref(), &text)?;
+        write_into_capture(&json_path, &fitted, &text)?;
     }
     println!("{text}");
-    Ok(())
-}
-
-/// Writes the fitted meshes where the capture has none (never replacing the user's), then
-/// head_fit.json, then capture.json (atomically, last: a failure before it leaves the capture as
-/// it was, apart from unreferenced files).
-fn write_into_capture(
-    json_path: &Path,
-    mut spec: CaptureSpec,
-    head: &TriMesh,
-    scalp: Option<&TriMesh>,
-    report: &str,
-) -> CmdResult {
-    let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
-    if spec.head_mesh.is_none() {
-        hairrecon_core::formats::write_mesh(dir.join("fitted_head.ply"), head)?;
-        spec.head_mesh = Some("fitted_head.ply".into());
-    }
-    if let (None, Some(scalp)) = (&spec.scalp_mesh, scalp) {
-        hairrecon_core::formats::write_mesh(dir.join("fitted_scalp.ply"), scalp)?;
-        spec.scalp_mesh = Some("fitted_scalp.ply".into());
-    }
-    std::fs::write(dir.join("head_fit.json"), format!("{report}\n"))
-        .map_err(|e| format!("cannot write {}: {e}", dir.join("head_fit.json").display()))?;
-    spec.write(json_path)?;
     Ok(())
 }

@@ -20,6 +20,7 @@
 //! what the raw mesh has beyond the head: hair, shoulders, a chair. Trimming ignores what the
 //! template has beyond the raw mesh: holes, a missing crown, the scalp under hair.
 
+pub mod capture_fit;
 pub mod coarse;
 pub mod compare;
 pub mod icp;

@@ -1,0 +1,136 @@
+//! Head fitting on a capture folder: the template (the bundled head and scalp, or the user's),
+//! the capture's raw mesh and cameras, the fit, the fitted head and scalp in the capture's frame,
+//! and, when the capture has a scalp already (a synthetic one), the fitted scalp's distance to it.
+//! What the command line, Python and Blender call.
+
+use std::path::{Path, PathBuf};
+
+use hairrecon_core::capture::{CaptureError, CaptureSpec};
+use hairrecon_core::formats::{read_mesh, read_ply_mesh_bytes, write_mesh};
+use hairrecon_core::{FormatError, TriMesh};
+use thiserror::Error;
+
+use super::compare::{surface_error, SurfaceError};
+use super::{fit_similarity, transform_mesh, FitError, FitOptions, FitResult, HeadTemplate};
+
+/// The head the fit registers, in the canonical frame (metres, Z up, the face toward −Y), and its
+/// scalp (the triangles the fit leaves out, since hair hides them; the roots' region after it).
+#[derive(Debug, Clone)]
+pub struct Template {
+    pub head: TriMesh,
+    pub scalp: TriMesh,
+}
+
+impl Template {
+    /// The bundled head (Cem Yuksel's, as in `blend_fixtures/`), built into the library.
+    pub fn bundled() -> Self {
+        const HEAD: &[u8] = include_bytes!("../../../../blend_fixtures/head.ply");
+        const SCALP: &[u8] = include_bytes!("../../../../blend_fixtures/scalp.ply");
+        let read = |b: &[u8]| read_ply_mesh_bytes(b).expect("the bundled head template reads");
+        Self { head: read(HEAD), scalp: read(SCALP) }
+    }
+
+    /// A head and its scalp from files (.ply or .obj).
+    pub fn from_files(head: &Path, scalp: &Path) -> Result<Self, FormatError> {
+        Ok(Self { head: read_mesh(head)?, scalp: read_mesh(scalp)? })
+    }
+}
+
+/// Why a capture could not be fitted.
+#[derive(Debug, Error)]
+pub enum CaptureFitError {
+    #[error(transparent)]
+    Capture(#[from] CaptureError),
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("head fitting on {raw}: {source}")]
+    Fit { raw: PathBuf, source: FitError },
+    #[error("the head template has no area outside its scalp")]
+    Template,
+}
+
+/// A fitted capture.
+#[derive(Debug, Clone)]
+pub struct CaptureFit {
+    pub fit: FitResult,
+    /// The template's head and scalp in the capture's frame.
+    pub head: TriMesh,
+    pub scalp: TriMesh,
+    /// The fitted scalp's distance to the capture's own scalp, canonical metres (only when the
+    /// capture has one: a synthetic capture, or a scalp made by hand).
+    pub scalp_error: Option<SurfaceError>,
+    /// The capture's spec as read.
+    pub spec: CaptureSpec,
+}
+
+/// Fits `template` to the capture `json_path` (its capture.json): its raw mesh and, with
+/// `use_cameras`, its cameras.
+pub fn fit_capture(
+    json_path: &Path,
+    template: &Template,
+    opts: &FitOptions,
+    use_cameras: bool,
+) -> Result<CaptureFit, CaptureFitError> {
+    let text = std::fs::read_to_string(json_path)
+        .map_err(|source| CaptureError::Io { path: json_path.to_path_buf(), source })?;
+    let value =
+        serde_json::from_str(&text).map_err(|source| CaptureError::Json { path: json_path.to_path_buf(), source })?;
+    let spec = CaptureSpec::from_json(value, json_path)?;
+    let cameras = spec.validate(json_path)?;
+    let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let raw_path = dir.join(&spec.raw_mesh);
+    let raw = read_mesh(&raw_path)?;
+    let points = HeadTemplate::new(&template.head, Some(&template.scalp), 2000, 7).ok_or(CaptureFitError::Template)?;
+    let cams = use_cameras.then_some(cameras.as_slice());
+    let fit =
+        fit_similarity(&points, &raw, cams, opts).map_err(|source| CaptureFitError::Fit { raw: raw_path, source })?;
+    let to_capture = fit.to_canonical.inverse();
+    let (head, scalp) = (transform_mesh(&template.head, &to_capture), transform_mesh(&template.scalp, &to_capture));
+    let scalp_error = match &spec.scalp_mesh {
+        Some(given) => {
+            let given = read_mesh(dir.join(given))?;
+            surface_error(&scalp, &given, 20_000).map(|e| {
+                let s = fit.to_canonical.scale;
+                SurfaceError { mean: e.mean * s, p95: e.p95 * s, max: e.max * s }
+            })
+        }
+        None => None,
+    };
+    Ok(CaptureFit { fit, head, scalp, scalp_error, spec })
+}
+
+/// The files [`write_into_capture`] writes, beside capture.json.
+pub const FITTED_HEAD: &str = "fitted_head.ply";
+pub const FITTED_SCALP: &str = "fitted_scalp.ply";
+pub const HEAD_FIT_JSON: &str = "head_fit.json";
+
+/// Writes the fitted head and scalp where the capture has none (never replacing the user's),
+/// `report` as head_fit.json, then capture.json (atomically, last: a failure before it leaves the
+/// capture as it was, apart from files it does not name). Returns the files written.
+pub fn write_into_capture(
+    json_path: &Path,
+    fitted: &CaptureFit,
+    report: &str,
+) -> Result<Vec<PathBuf>, CaptureFitError> {
+    let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut spec = fitted.spec.clone();
+    let mut written = Vec::new();
+    if spec.head_mesh.is_none() {
+        write_mesh(dir.join(FITTED_HEAD), &fitted.head)?;
+        spec.head_mesh = Some(FITTED_HEAD.into());
+        written.push(dir.join(FITTED_HEAD));
+    }
+    if spec.scalp_mesh.is_none() {
+        write_mesh(dir.join(FITTED_SCALP), &fitted.scalp)?;
+        spec.scalp_mesh = Some(FITTED_SCALP.into());
+        written.push(dir.join(FITTED_SCALP));
+    }
+    let report_path = dir.join(HEAD_FIT_JSON);
+    hairrecon_core::formats::atomic_write(&report_path, |w| {
+        use std::io::Write;
+        Ok(writeln!(w, "{report}")?)
+    })?;
+    written.push(report_path);
+    written.push(spec.write(json_path)?);
+    Ok(written)
+}
