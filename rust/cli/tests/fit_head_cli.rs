@@ -85,6 +85,7 @@ fn capture(dir: &Path, with_scalp: bool) {
         head_mesh: None,
         scalp_mesh: None,
         gt_strands: None,
+        to_canonical: None,
     };
     if with_scalp {
         write_mesh(dir.join("scalp.ply"), &to_capture(&read_mesh(fixtures().join("scalp.ply")).unwrap())).unwrap();

@@ -92,7 +92,7 @@ fn a_colmap_model_imports_and_reconstruct_refuses_its_frame() {
         .output()
         .unwrap();
     let line = error_line(&rec);
-    assert!(line.contains("imported frame") && line.contains("head fitting"), "{line}");
+    assert!(line.contains("imported frame") && line.contains("fit-head"), "{line}");
     assert!(!dir.join("out").exists());
     // Importing again over the capture is refused.
     let line = error_line(&import(&dir, &[]));

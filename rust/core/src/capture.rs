@@ -48,7 +48,9 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::camera::{Camera, CameraError};
+pub use crate::capture_frame::FrameSpec;
 use crate::formats::{atomic_write, FormatError, FormatErrorKind};
+use crate::similarity::Similarity;
 
 /// The capture format version this library reads and writes.
 pub const CAPTURE_VERSION: u32 = 1;
@@ -157,6 +159,10 @@ pub struct CaptureSpec {
     pub scalp_mesh: Option<PathBuf>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gt_strands: Option<PathBuf>,
+    /// The similarity from the capture's frame to the canonical one (imported captures, after
+    /// `hairrecon fit-head --write`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub to_canonical: Option<FrameSpec>,
 }
 
 /// The length unit of a capture's world frame.
@@ -246,6 +252,11 @@ pub struct Capture {
     pub head_mesh: Option<PathBuf>,
     pub scalp_mesh: Option<PathBuf>,
     pub gt_strands: Option<PathBuf>,
+    /// capture.json's `to_canonical`.
+    pub to_canonical: Option<Similarity>,
+    /// The similarity from the frame of the files (meshes, strands) to this capture's frame:
+    /// `None` as loaded; set by [`Capture::in_canonical_frame`] (see `capture_frame`).
+    pub file_frame: Option<Similarity>,
 }
 
 impl Capture {
@@ -315,6 +326,8 @@ impl Capture {
             head_mesh: opt("head_mesh", spec.head_mesh)?,
             scalp_mesh: opt("scalp_mesh", spec.scalp_mesh)?,
             gt_strands: opt("gt_strands", spec.gt_strands)?,
+            to_canonical: spec.to_canonical.and_then(|f| f.similarity()),
+            file_frame: None,
         })
     }
 }
@@ -384,6 +397,9 @@ impl CaptureSpec {
             if p.is_some_and(|p| p.as_os_str().is_empty()) {
                 return Err(empty(what.to_string()));
             }
+        }
+        if let Some(f) = &self.to_canonical {
+            f.validate(self.frame.as_deref(), json)?;
         }
         Ok(cameras)
     }
@@ -571,6 +587,7 @@ mod tests {
             head_mesh: None,
             scalp_mesh: None,
             gt_strands: None,
+            to_canonical: None,
         }
     }
 

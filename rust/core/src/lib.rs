@@ -13,11 +13,13 @@
 
 pub mod camera;
 pub mod capture;
+pub mod capture_frame;
 pub mod formats;
 pub mod image_io;
 pub mod mesh;
 pub mod metric;
 pub mod scalp;
+pub mod similarity;
 pub mod spatial;
 pub mod strands;
 

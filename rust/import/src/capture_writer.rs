@@ -181,6 +181,7 @@ fn write_into(
         head_mesh: None,
         scalp_mesh: None,
         gt_strands: None,
+        to_canonical: None,
     };
     spec.write(staging)?;
     Capture::load(staging)?;

@@ -97,6 +97,7 @@ impl Class {
             ReconError::NoScalp { .. }
             | ReconError::Scalp { .. }
             | ReconError::NotCanonical { .. }
+            | ReconError::Capture(_)
             | ReconError::Implausible { .. }
             | ReconError::EmptyStage { .. } => Class::Capture,
             ReconError::Config(_)

@@ -23,6 +23,8 @@ pub enum ReconError {
     /// A file could not be read or written.
     #[error(transparent)]
     Format(#[from] FormatError),
+    #[error(transparent)]
+    Capture(hairrecon_core::capture::CaptureError),
     /// An image or orientation map could not be read or written.
     #[error(transparent)]
     Orient2d(#[from] Orient2dError),
@@ -62,12 +64,12 @@ pub enum ReconError {
     /// `--from` lies after `--stop-after`.
     #[error("--from {from} comes after --stop-after {stop}: nothing to run")]
     EmptyPlan { from: Stage, stop: Stage },
-    /// The capture is not in the canonical frame in metres (an imported capture), and hairrecon
-    /// cannot yet place the head in it.
+    /// The capture is not in the canonical frame in metres (an imported capture), and no head fit
+    /// has placed it yet.
     #[error(
-        "the capture {dir} is in an imported frame (frame {frame:?}, units {units:?}); the reconstruction works in \
-         metres with Z up and the face toward -Y, and finding that frame on an imported capture (head fitting) is \
-         not available yet. Reconstruct from a Blender scene set up in that frame, or a capture written in it"
+        "the capture {dir} is in an imported frame (frame {frame:?}, units {units:?}) that no head fit has placed \
+         yet; the reconstruction works in metres with Z up and the face toward -Y. Run `hairrecon fit-head {dir} \
+         --write` first (it adds the fitted head, the scalp and \"to_canonical\" to capture.json)"
     )]
     NotCanonical { dir: PathBuf, frame: String, units: String },
     /// A mesh or the cameras cannot be of a head in metres ([`crate::preflight`]).

@@ -21,7 +21,6 @@ use std::cell::OnceCell;
 
 use glam::Vec3;
 use hairrecon_core::capture::Capture;
-use hairrecon_core::formats::read_strands;
 use hairrecon_core::metric::{evaluate, MetricOptions, MetricReport};
 use hairrecon_core::spatial::PointIndex;
 use hairrecon_core::{Bvh, StrandSet};
@@ -52,7 +51,7 @@ impl GroundTruth {
     /// Loads and indexes the capture's ground-truth strands (`None` when it has none).
     pub fn load(capture: &Capture, raw: &Bvh) -> Result<Option<Self>, ReconError> {
         let Some(p) = &capture.gt_strands else { return Ok(None) };
-        let strands = read_strands(p)?;
+        let strands = capture.read_strands(p)?;
         let index = PointIndex::from_strands(&strands, 0.001)?;
         let surface = (0..index.len())
             .into_par_iter()

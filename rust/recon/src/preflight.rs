@@ -6,7 +6,6 @@
 //! The bounds are wide: a head with its hair spans about 0.3 to 1 m; anything from 0.1 to 5 m
 //! passes. A photogrammetry mesh of a head has thousands of triangles; at least 100 are needed.
 
-use hairrecon_core::formats::read_mesh;
 use hairrecon_core::mesh::TriMesh;
 
 use crate::error::ReconError;
@@ -56,7 +55,7 @@ pub fn check(ctx: &Context<'_>) -> Result<(), ReconError> {
     let (lo, hi) = raw.bbox();
     let centre = 0.5 * (lo + hi);
     if let Some(scalp_path) = &cap.scalp_mesh {
-        let scalp = read_mesh(scalp_path)?;
+        let scalp = cap.read_mesh(scalp_path)?;
         let ds = diagonal(&scalp);
         let what = format!("the scalp mesh {}", scalp_path.display());
         if !(SCALP_DIAGONAL_M.0..=SCALP_DIAGONAL_M.1).contains(&ds) {

@@ -19,7 +19,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
-use hairrecon_core::formats::write_strands;
 
 use crate::config::{ConfigFile, Plan, ReconstructConfig, Stage};
 use crate::error::ReconError;
@@ -58,13 +57,16 @@ pub fn reconstruct(
     progress: &dyn Progress,
 ) -> Result<ReconstructOutput, ReconError> {
     cfg.validate()?;
-    if !capture.is_canonical() {
+    // An imported capture runs in the canonical frame that head fitting found; its results go
+    // back to its own frame (`Context::write_result`).
+    let Some(working) = capture.in_canonical_frame().map_err(ReconError::Capture)? else {
         return Err(ReconError::NotCanonical {
             dir: capture.dir.clone(),
             frame: capture.frame.name().into(),
             units: capture.units.name().into(),
         });
-    }
+    };
+    let capture = &working;
     let stop = plan.stop_after.unwrap_or(Stage::Dr);
     let last = if cfg.dr { stop } else { stop.min(Stage::Init) };
     let from = plan.from;
@@ -194,8 +196,8 @@ fn run_stages(
     };
     drop(directed);
     if last == Stage::Init {
-        write_strands(ctx.output("guides.hair"), &init.guides)?;
-        write_strands(ctx.output("strands.hair"), &init.children)?;
+        ctx.write_result("guides.hair", &init.guides)?;
+        ctx.write_result("strands.hair", &init.children)?;
         if let Some(r) = report.stages.iter_mut().find(|r| r.stage == Stage::Init) {
             r.files.extend(ctx.take_written());
         }

@@ -186,7 +186,7 @@ fn an_imported_capture_is_refused_before_anything_is_written() {
     let e = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), Plan::default(), &NoProgress).unwrap_err();
     let msg = e.to_string();
     assert!(matches!(e, ReconError::NotCanonical { .. }), "{msg}");
-    assert!(msg.contains("\"unknown\"") && msg.contains("head fitting"), "{msg}");
+    assert!(msg.contains("\"unknown\"") && msg.contains("fit-head"), "{msg}");
     assert!(!out_dir.exists(), "a refused run created {}", out_dir.display());
     // Metres in the canonical frame run; centimetres do not yet.
     cap.frame = hairrecon_core::capture::Frame::Canonical;
@@ -257,4 +257,73 @@ fn masks_without_hair_stop_at_the_stage_that_finds_no_points() {
     assert!(msg.contains("orient3d") && msg.contains("masks"), "{msg}");
     assert!(!out_dir.join("strands.hair").exists());
     let _ = std::fs::remove_dir_all(&cap.dir);
+}
+
+/// The capture of `capture(name)` moved into another frame (a photogrammetry tool's: scale 40,
+/// turned, offset; units unknown), with `to_canonical` as head fitting writes it.
+fn imported(name: &str) -> (Capture, hairrecon_core::similarity::Similarity) {
+    use glam::{DMat3, DVec3};
+    use hairrecon_core::capture::{CaptureSpec, FrameSpec};
+    use hairrecon_core::formats::{read_mesh, read_strands, write_mesh, write_strands};
+    use hairrecon_core::similarity::{transform_camera, transform_mesh, transform_strands, Similarity};
+    let canonical = capture(name);
+    let dir =
+        canonical.dir.with_file_name(format!("{}-imported", canonical.dir.file_name().unwrap().to_string_lossy()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("gt")).unwrap();
+    let to_file = Similarity {
+        scale: 40.0,
+        rotation: DMat3::from_euler(glam::EulerRot::ZXY, 2.1, -0.6, 0.4),
+        translation: DVec3::new(7.0, -3.0, 25.0),
+    };
+    let json = canonical.dir.join("capture.json");
+    let mut spec: CaptureSpec = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for m in ["raw_mesh.ply", "head.ply", "scalp.ply"] {
+        write_mesh(dir.join(m), &transform_mesh(&read_mesh(canonical.dir.join(m)).unwrap(), &to_file)).unwrap();
+    }
+    let gt = read_strands(canonical.dir.join("gt/strands.hair")).unwrap();
+    write_strands(dir.join("gt/strands.hair"), &transform_strands(&gt, &to_file).unwrap()).unwrap();
+    for (v, view) in spec.views.iter_mut().zip(&canonical.views) {
+        let cam = transform_camera(&view.camera, &to_file).unwrap();
+        (v.r, v.t) = (cam.r_rows(), cam.t().to_array());
+        v.gt_orientation = None;
+        for f in [&v.image, v.mask.as_ref().unwrap()] {
+            std::fs::create_dir_all(dir.join(f).parent().unwrap()).unwrap();
+            std::fs::copy(canonical.dir.join(f), dir.join(f)).unwrap();
+        }
+    }
+    spec.units = "unknown".into();
+    spec.frame = Some("imported".into());
+    spec.to_canonical = Some(FrameSpec::of(&to_file.inverse()));
+    spec.write(&dir).unwrap();
+    let _ = std::fs::remove_dir_all(&canonical.dir);
+    (Capture::load(&dir).unwrap(), to_file)
+}
+
+#[test]
+fn an_imported_capture_with_its_frame_runs_in_the_canonical_one_and_writes_in_its_own() {
+    let (cap, to_file) = imported("frame");
+    let canonical_cap = capture("frame-canonical");
+    let mvs = hairrecon_recon::points3d::LineMvsParams { stride: 2, ..Default::default() };
+    let cfg = ReconstructConfig { guides: 100, children: 600, mvs, seed: 3, dr: false, ..Default::default() };
+    let plan = Plan::default();
+    let ours = reconstruct(&cap, &cap.dir.join("out"), &cfg, plan, &NoProgress).unwrap();
+    let theirs = reconstruct(&canonical_cap, &canonical_cap.dir.join("out"), &cfg, plan, &NoProgress).unwrap();
+    // Scored in the canonical frame (millimetres), as the same capture in metres is.
+    let f1 = |r: &Report| r.scores.init_strands.as_ref().unwrap().undirected[1].f1;
+    let (a, b) = (f1(&ours.report), f1(&theirs.report));
+    println!("F1 at 2 mm: imported {a:.2}, canonical {b:.2}");
+    assert!((a - b).abs() < 1.0, "imported {a:.2} against canonical {b:.2}");
+    // strands.hair is in the capture's own frame: back in the canonical one it lies on the
+    // canonical run's strands.
+    let strands = hairrecon_core::read_strands(ours.strands.unwrap()).unwrap();
+    let back = hairrecon_core::similarity::transform_strands(&strands, &to_file.inverse()).unwrap();
+    let reference = hairrecon_core::read_strands(theirs.strands.unwrap()).unwrap();
+    let m =
+        hairrecon_core::metric::evaluate(&back, &reference, &hairrecon_core::metric::MetricOptions::default()).unwrap();
+    println!("imported run's strands against the canonical run's: {m:?}");
+    assert!(m.undirected[0].f1 > 90.0, "{m:?}");
+    for c in [&cap, &canonical_cap] {
+        let _ = std::fs::remove_dir_all(&c.dir);
+    }
 }

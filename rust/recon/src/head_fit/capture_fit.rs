@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use hairrecon_core::capture::{CaptureError, CaptureSpec};
+use hairrecon_core::capture::{CaptureError, CaptureSpec, FrameSpec};
 use hairrecon_core::formats::{read_mesh, read_ply_mesh_bytes, write_mesh};
 use hairrecon_core::{FormatError, TriMesh};
 use thiserror::Error;
@@ -115,6 +115,10 @@ pub fn write_into_capture(
     let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut spec = fitted.spec.clone();
     let mut written = Vec::new();
+    // An imported capture is placed in the canonical frame by the fit; a canonical one already is.
+    if hairrecon_core::capture::Frame::parse(spec.frame.as_deref()) == Some(hairrecon_core::capture::Frame::Imported) {
+        spec.to_canonical = Some(FrameSpec::of(&fitted.fit.to_canonical));
+    }
     if spec.head_mesh.is_none() {
         write_mesh(dir.join(FITTED_HEAD), &fitted.head)?;
         spec.head_mesh = Some(FITTED_HEAD.into());

@@ -28,63 +28,15 @@ pub mod score;
 pub mod template;
 pub mod umeyama;
 
-use glam::{DMat3, DQuat, DVec3, Vec3};
+use glam::{DMat3, DVec3};
 use hairrecon_core::{Bvh, Camera, TriMesh};
 use rayon::prelude::*;
 use thiserror::Error;
 
+pub use hairrecon_core::similarity::{transform_mesh, Similarity};
 pub use icp::{trimmed_icp, IcpMetric, IcpOptions, IcpOutcome, SurfaceSamples, Target};
 pub use score::{score_pose, PoseScore};
 pub use template::{HeadTemplate, SurfaceStats};
-
-/// `x ↦ scale · rotation · x + translation`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Similarity {
-    pub scale: f64,
-    pub rotation: DMat3,
-    pub translation: DVec3,
-}
-
-impl Similarity {
-    pub const IDENTITY: Self = Self { scale: 1.0, rotation: DMat3::IDENTITY, translation: DVec3::ZERO };
-
-    /// Maps a point.
-    #[inline]
-    pub fn apply(&self, p: DVec3) -> DVec3 {
-        self.scale * (self.rotation * p) + self.translation
-    }
-
-    /// The inverse map.
-    pub fn inverse(&self) -> Self {
-        let rt = self.rotation.transpose();
-        Self { scale: 1.0 / self.scale, rotation: rt, translation: -(rt * self.translation) / self.scale }
-    }
-
-    /// `self ∘ other`: `other` first.
-    pub fn then_after(&self, other: &Self) -> Self {
-        Self {
-            scale: self.scale * other.scale,
-            rotation: self.rotation * other.rotation,
-            translation: self.apply(other.translation),
-        }
-    }
-
-    /// The rotation as a unit axis and an angle in degrees (axis +Z for no rotation).
-    pub fn axis_angle_degrees(&self) -> (DVec3, f64) {
-        let (axis, angle) = DQuat::from_mat3(&self.rotation).normalize().to_axis_angle();
-        if angle.abs() < 1e-12 {
-            (DVec3::Z, 0.0)
-        } else {
-            (axis, angle.to_degrees())
-        }
-    }
-
-    /// The angle of the rotation that takes `self`'s rotation to `other`'s, in degrees.
-    pub fn rotation_angle_to(&self, other: &Self) -> f64 {
-        let m = self.rotation.transpose() * other.rotation;
-        ((m.x_axis.x + m.y_axis.y + m.z_axis.z - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
-    }
-}
 
 /// The parameters of [`fit_similarity`]. Lengths in millimetres are in the canonical frame.
 #[derive(Debug, Clone)]
@@ -408,17 +360,5 @@ impl Search<'_> {
         let full = Candidate { t: o.transform, score: self.score(&o.transform, usize::MAX, true) };
         let best = if full.score.cost <= refined[0].score.cost { full } else { refined[0] };
         (best, runner_up)
-    }
-}
-
-/// Maps a mesh's vertices by a similarity (f64 inside), normals rotated; for callers that move a
-/// raw mesh into the canonical frame.
-pub fn transform_mesh(mesh: &TriMesh, s: &Similarity) -> TriMesh {
-    let rot = s.rotation.as_mat3();
-    TriMesh {
-        vertices: mesh.vertices.iter().map(|v| s.apply(v.as_dvec3()).as_vec3()).collect(),
-        triangles: mesh.triangles.clone(),
-        normals: mesh.normals.as_ref().map(|n| n.iter().map(|&v: &Vec3| (rot * v).normalize_or_zero()).collect()),
-        uvs: mesh.uvs.clone(),
     }
 }

@@ -3,7 +3,6 @@
 //! the scalp) hiding what is behind it; the orientation quiet around partings; guides first, then
 //! children. Saves `guides.hair`, `strands.hair` (the run's result), `loss.csv` and `loss.png`.
 
-use hairrecon_core::formats::write_strands;
 use hairrecon_core::StrandSet;
 use serde::Serialize;
 
@@ -106,8 +105,8 @@ impl DrOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
         write_loss_csv(&ctx.output("loss.csv"), &self.loss_curve)?;
         write_loss_png(&ctx.output("loss.png"), &self.loss_curve)?;
-        write_strands(ctx.output("guides.hair"), &self.guides)?;
-        write_strands(ctx.output("strands.hair"), &self.children)?;
+        ctx.write_result("guides.hair", &self.guides)?;
+        ctx.write_result("strands.hair", &self.children)?;
         Ok(())
     }
 }

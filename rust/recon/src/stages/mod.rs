@@ -19,7 +19,6 @@ use std::cell::{OnceCell, RefCell};
 use std::path::{Path, PathBuf};
 
 use hairrecon_core::capture::Capture;
-use hairrecon_core::formats::read_mesh;
 use hairrecon_core::Bvh;
 
 use crate::config::Stage;
@@ -76,6 +75,14 @@ impl<'a> Context<'a> {
         self.path(name)
     }
 
+    /// Writes a result the user keeps (`strands.hair`, `guides.hair`) in the frame of the capture's
+    /// files: an imported capture's own frame and units, though the run works in the canonical one.
+    pub fn write_result(&self, name: &str, strands: &hairrecon_core::StrandSet) -> Result<(), ReconError> {
+        let strands = self.capture.to_file_frame(strands).map_err(hairrecon_core::FormatError::from)?;
+        hairrecon_core::formats::write_strands(self.output(name), &strands)?;
+        Ok(())
+    }
+
     /// The files [`Context::output`] handed out since the last call.
     pub fn take_written(&self) -> Vec<String> {
         self.written.take()
@@ -84,7 +91,7 @@ impl<'a> Context<'a> {
     /// The raw mesh (the hair's outer surface), with its BVH.
     pub fn raw(&self) -> Result<&Bvh, ReconError> {
         if self.raw.get().is_none() {
-            let _ = self.raw.set(Bvh::new(read_mesh(&self.capture.raw_mesh)?));
+            let _ = self.raw.set(Bvh::new(self.capture.read_mesh(&self.capture.raw_mesh)?));
         }
         Ok(self.raw.get().expect("set above"))
     }
@@ -99,8 +106,8 @@ impl<'a> Context<'a> {
     pub fn inner(&self) -> Result<&Bvh, ReconError> {
         if self.inner.get().is_none() {
             let mesh = match &self.capture.head_mesh {
-                Some(h) => read_mesh(h)?,
-                None => read_mesh(self.scalp_path()?)?,
+                Some(h) => self.capture.read_mesh(h)?,
+                None => self.capture.read_mesh(self.scalp_path()?)?,
             };
             let _ = self.inner.set(Bvh::new(mesh));
         }

@@ -3,7 +3,6 @@
 //! scalp's normal) when any skin is found, and removes an earlier run's file otherwise; and
 //! `partings.json`, the search's statistics, which tells a resumed run that the stage ran.
 
-use hairrecon_core::formats::read_mesh;
 use hairrecon_core::scalp::Partings;
 
 use crate::config::{ReconstructConfig, Stage};
@@ -26,7 +25,7 @@ pub struct PartingsOut {
 
 fn load_scalp(ctx: &Context<'_>) -> Result<Scalp, ReconError> {
     let path = ctx.scalp_path()?;
-    Scalp::new(read_mesh(path)?).map_err(|source| ReconError::Scalp { path: path.into(), source })
+    Scalp::new(ctx.capture.read_mesh(path)?).map_err(|source| ReconError::Scalp { path: path.into(), source })
 }
 
 /// Reads the scalp and finds its partings (unless `cfg.parting.enabled` is false).

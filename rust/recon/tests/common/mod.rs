@@ -315,6 +315,7 @@ pub fn write_capture_with(dir: &Path, n_strands: usize, size: u32, seed: u64, co
         head_mesh: Some("head.ply".into()),
         scalp_mesh: Some("scalp.ply".into()),
         gt_strands: Some("gt/strands.hair".into()),
+        to_canonical: None,
     };
     std::fs::write(dir.join("capture.json"), serde_json::to_string_pretty(&spec).unwrap()).unwrap();
     dir.to_path_buf()
