@@ -857,6 +857,19 @@ def task_fit_head(p):
             err = np.linalg.norm(world - truth, axis=1) / float(p["scale"]) * 1e3
             out["scalp_err_mm"] = {"mean": float(err.mean()), "max": float(err.max())}
         out["head_faces"] = len(head.data.polygons)
+        # Reconstruct Hair's preparation takes the fitted scalp and head into its capture
+        from importlib import import_module
+
+        Session = import_module(extension_package().__name__ + ".session").Session
+        sess = Session.prepare(bpy.context)
+        try:
+            spec = json.loads((sess.capture_dir / "capture.json").read_text())
+            written = hairrecon.read_mesh(str(sess.capture_dir / spec["scalp_mesh"]))
+            out["session"] = {"surface": sess.surface_name, "head_mesh": spec.get("head_mesh"),
+                              "scalp_triangles": int(len(written["triangles"])),
+                              "scalp_has_uv": written["uvs"] is not None}
+        finally:
+            sess.cleanup()
 
     # a sphere does not fit: one error, the scene and the panel as they were
     run_op(bpy.ops.hairrecon.import_capture, directory=p["sphere"])

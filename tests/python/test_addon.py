@@ -396,7 +396,7 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
 def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     """Fit Head on an imported capture of the bundled head moved by a similarity (scale 40, turned, offset;
     fit_fixture.py): the Fitted Scalp object lies on the true scalp, in the scene's frame, and becomes the
-    panel's scalp; on a sphere's capture it reports one error and changes nothing."""
+    panel's scalp, which Reconstruct Hair's capture takes; on a sphere's capture it reports one error and changes nothing."""
     from fit_fixture import SCALE, write_capture
 
     truth = write_capture(hairrecon, tmp_path / "good", photos=True)["scalp"]
@@ -409,6 +409,9 @@ def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     assert out["collection"] == ["Fitted Head", "Fitted Scalp"] and out["linked"]
     assert out["panel"] == {"source": "OBJECT", "scalp": "Fitted Scalp", "head": "Fitted Head"}
     assert out["scalp_vertices"][0] == out["scalp_vertices"][1] and out["head_faces"] > 0
+    # Reconstruct Hair's capture takes them: the scalp (with UVs made for it) and the head
+    assert out["session"]["surface"] == "Fitted Scalp" and out["session"]["head_mesh"], out["session"]
+    assert out["session"]["scalp_triangles"] > 0 and out["session"]["scalp_has_uv"]
     print(f"Fit Head in Blender: {out['fit_seconds']:.1f} s, fitted scalp vertices {out['scalp_err_mm']}")
     assert out["scalp_err_mm"]["max"] < 1.0, out["scalp_err_mm"]
     err = out["sphere_error"]
