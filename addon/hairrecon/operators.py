@@ -15,7 +15,7 @@ import numpy as np
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import scene_build
+from . import fit_head, scene_build
 from .core.camera import PinholeCamera
 from .core.capture import CaptureInputError, read_capture_json
 from .session import Session, UserError, describe, library
@@ -57,6 +57,9 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
     def poll(cls, context):
         if _ACTIVE:
             cls.poll_message_set("a hair reconstruction is already running")
+            return False
+        if fit_head.running():
+            cls.poll_message_set("a head fit is running")
             return False
         return context.scene is not None
 

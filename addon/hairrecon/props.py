@@ -132,11 +132,12 @@ def register():
     wm.hairrecon_running = BoolProperty(default=False, options={"SKIP_SAVE"})
     wm.hairrecon_progress = FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR", options={"SKIP_SAVE"})
     wm.hairrecon_status = StringProperty(default="", options={"SKIP_SAVE"})
+    wm.hairrecon_fitting = BoolProperty(default=False, options={"SKIP_SAVE"})  # Fit Head is running
 
 
 def unregister():
     wm = bpy.types.WindowManager
-    for n in ("hairrecon_running", "hairrecon_progress", "hairrecon_status"):
+    for n in ("hairrecon_running", "hairrecon_progress", "hairrecon_status", "hairrecon_fitting"):
         if hasattr(wm, n):
             delattr(wm, n)
     del bpy.types.Scene.hairrecon

@@ -5,6 +5,17 @@ from __future__ import annotations
 import bpy
 
 
+def _scalp_used(s) -> str:
+    """What Reconstruct Hair grows hair on, for the panel."""
+    if s.scalp_source == "OBJECT":
+        if s.scalp_object is None:
+            return "No scalp: pick one, or Fit Head adds one"
+        return f"Hair grows on {s.scalp_object.name}"
+    if s.head_object is None or not s.scalp_vertex_group:
+        return "No scalp: pick a vertex group, or Fit Head adds a scalp"
+    return f"Hair grows on {s.head_object.name}'s group {s.scalp_vertex_group}"
+
+
 class HAIRRECON_PT_reconstruct(bpy.types.Panel):
     bl_label = "Hair Reconstruction"
     bl_idname = "HAIRRECON_PT_reconstruct"
@@ -36,6 +47,7 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
                 col.prop_search(s, "scalp_vertex_group", s.head_object, "vertex_groups")
             else:
                 col.prop(s, "scalp_vertex_group")
+        col.label(text=_scalp_used(s), icon="INFO")
 
         col = layout.column()
         col.prop(s, "quality")
@@ -52,8 +64,12 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
         if wm.hairrecon_running:
             layout.progress(factor=wm.hairrecon_progress, type="BAR", text=wm.hairrecon_status or "Running")
             layout.label(text="Press Esc in the viewport to cancel", icon="INFO")
+        elif wm.hairrecon_fitting:
+            layout.label(text="Fitting the head to the raw mesh...", icon="TIME")
         else:
-            layout.operator("hairrecon.reconstruct", icon="CURVES")
+            row = layout.row(align=True)
+            row.operator("hairrecon.fit_head", icon="USER")
+            row.operator("hairrecon.reconstruct", icon="CURVES")
         row = layout.row(align=True)
         row.operator("hairrecon.import_capture", text="Import Capture", icon="IMPORT")
         row.operator("hairrecon.export_hair", text="Export Hair", icon="EXPORT")

@@ -825,12 +825,68 @@ def task_import_colmap(p):
     return out
 
 
+def task_fit_head(p):
+    """Fit Head on an imported capture (the bundled head moved by a similarity, tests/python/fit_fixture.py):
+    the fitted scalp object against the true scalp; then on a sphere's capture: one error, nothing changed."""
+    out = {"install": install(p.get("zip"))}
+    import hairrecon
+
+    clear_scene()
+    run_op(bpy.ops.hairrecon.import_capture, directory=p["good"])
+    s = bpy.context.scene.hairrecon
+    out["before"] = {"scalp": s.scalp_object.name if s.scalp_object else None}
+    t0 = time.monotonic()
+    out["result"], out["error"] = run_op(bpy.ops.hairrecon.fit_head)
+    out["fit_seconds"] = time.monotonic() - t0
+    scalp = bpy.data.objects.get("Fitted Scalp")
+    head = bpy.data.objects.get("Fitted Head")
+    coll = bpy.data.collections.get("Fitted Head")
+    out["collection"] = sorted(o.name for o in coll.objects) if coll else None
+    out["linked"] = coll is not None and coll.name in bpy.context.scene.collection.children
+    out["panel"] = {"source": s.scalp_source, "scalp": s.scalp_object.name if s.scalp_object else None,
+                    "head": s.head_object.name if s.head_object else None}
+    if scalp is not None and head is not None:
+        me = scalp.data
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        m = np.array(scalp.matrix_world)
+        world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        truth = hairrecon.read_mesh(p["truth_scalp"])["vertices"].astype(np.float64)
+        out["scalp_vertices"] = [len(world), len(truth)]
+        if len(world) == len(truth):
+            err = np.linalg.norm(world - truth, axis=1) / float(p["scale"]) * 1e3
+            out["scalp_err_mm"] = {"mean": float(err.mean()), "max": float(err.max())}
+        out["head_faces"] = len(head.data.polygons)
+        # Reconstruct Hair's preparation takes the fitted scalp and head into its capture
+        from importlib import import_module
+
+        Session = import_module(extension_package().__name__ + ".session").Session
+        sess = Session.prepare(bpy.context)
+        try:
+            spec = json.loads((sess.capture_dir / "capture.json").read_text())
+            written = hairrecon.read_mesh(str(sess.capture_dir / spec["scalp_mesh"]))
+            out["session"] = {"surface": sess.surface_name, "head_mesh": spec.get("head_mesh"),
+                              "scalp_triangles": int(len(written["triangles"])),
+                              "scalp_has_uv": written["uvs"] is not None}
+        finally:
+            sess.cleanup()
+
+    # a sphere does not fit: one error, the scene and the panel as they were
+    run_op(bpy.ops.hairrecon.import_capture, directory=p["sphere"])
+    panel = (s.scalp_source, s.scalp_object, s.head_object)
+    before = snapshot()
+    out["sphere_result"], out["sphere_error"] = run_op(bpy.ops.hairrecon.fit_head)
+    out["sphere_unchanged"] = snapshot() == before and (s.scalp_source, s.scalp_object, s.head_object) == panel
+    return out
+
+
 TASKS = {
     "camera": task_camera,
     "install": task_install,
     "pipeline": task_pipeline,
     "cancel": task_cancel,
     "bad_inputs": task_bad_inputs,
+    "fit_head": task_fit_head,
     "inspect": task_inspect,
     "import_colmap": task_import_colmap,
 }

@@ -393,6 +393,33 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
     assert vg["unchanged"]
 
 
+def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
+    """Fit Head on an imported capture of the bundled head moved by a similarity (scale 40, turned, offset;
+    fit_fixture.py): the Fitted Scalp object lies on the true scalp, in the scene's frame, and becomes the
+    panel's scalp, which Reconstruct Hair's capture takes; on a sphere's capture it reports one error and changes nothing."""
+    from fit_fixture import SCALE, write_capture
+
+    truth = write_capture(hairrecon, tmp_path / "good", photos=True)["scalp"]
+    hairrecon.write_mesh(str(tmp_path / "truth_scalp.ply"), *truth)
+    write_capture(hairrecon, tmp_path / "sphere", raw="sphere", photos=True)
+    out = run_worker("fit_head", tmp_path / "user", zip=str(extension_zip), good=str(tmp_path / "good"),
+                     sphere=str(tmp_path / "sphere"), truth_scalp=str(tmp_path / "truth_scalp.ply"), scale=SCALE)
+    assert out["result"] == ["FINISHED"] and out["error"] is None, out["error"]
+    assert out["before"]["scalp"] is None
+    assert out["collection"] == ["Fitted Head", "Fitted Scalp"] and out["linked"]
+    assert out["panel"] == {"source": "OBJECT", "scalp": "Fitted Scalp", "head": "Fitted Head"}
+    assert out["scalp_vertices"][0] == out["scalp_vertices"][1] and out["head_faces"] > 0
+    # Reconstruct Hair's capture takes them: the scalp (with UVs made for it) and the head
+    assert out["session"]["surface"] == "Fitted Scalp" and out["session"]["head_mesh"], out["session"]
+    assert out["session"]["scalp_triangles"] > 0 and out["session"]["scalp_has_uv"]
+    print(f"Fit Head in Blender: {out['fit_seconds']:.1f} s, fitted scalp vertices {out['scalp_err_mm']}")
+    assert out["scalp_err_mm"]["max"] < 1.0, out["scalp_err_mm"]
+    err = out["sphere_error"]
+    assert out["sphere_result"] is None and err and err.strip().count("\n") == 0, err
+    assert "does not fit the raw mesh" in err and "'raw_mesh" in err and "hairrecon-fit-" not in err, err
+    assert out["sphere_unchanged"]
+
+
 def test_import_colmap_builds_the_scene_and_refuses_bad_input(extension_zip, tmp_path):
     """File > Import > COLMAP Model (hairrecon) on a hand-written model with 160x120 photos, imported at a
     working height of 60: the cameras give back capture.json's K, R, t (and K is the hand-worked

@@ -278,6 +278,37 @@ def write_capture(
     return Path(lib.write_capture(str(d), spec))
 
 
+def write_fit_capture(
+    directory: os.PathLike | str,
+    cameras: Sequence[tuple[str, PinholeCamera]],
+    raw_mesh: MeshData,
+    lib,
+) -> Path:
+    """Writes the capture a head fit reads (``lib.fit_head``): ``directory/capture.json`` with the
+    cameras (name, OpenCV camera) and the raw mesh. The fit reads no photo, so the images the views
+    name are not written; the frame is "imported" (the fit finds it). Returns capture.json's path."""
+    if not cameras:
+        raise CaptureInputError("there are no cameras: put the calibrated cameras in the Cameras collection")
+    check_mesh(raw_mesh, "raw mesh")
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    entries, seen = [], set()
+    for name, cam in cameras:
+        stem = safe_file_stem(name)
+        if stem.lower() in seen:
+            raise CaptureInputError(f"two cameras have the file name {stem.lower()!r}; rename one of them")
+        seen.add(stem.lower())
+        entries.append({"name": name, "image": f"images/{stem}.png", **cam.to_json()})
+    lib.write_mesh(
+        str(d / "raw_mesh.ply"),
+        np.ascontiguousarray(raw_mesh.vertices, dtype=np.float32),
+        np.ascontiguousarray(raw_mesh.triangles, dtype=np.uint32),
+    )
+    spec = {"version": CAPTURE_VERSION, "units": "unknown", "frame": "imported", "convention": "opencv",
+            "views": entries, "raw_mesh": "raw_mesh.ply"}
+    return Path(lib.write_capture(str(d), spec))
+
+
 def read_capture_json(directory: os.PathLike | str) -> dict:
     """capture.json of a capture folder as a dict, with clear errors (validation is the library's)."""
     d = Path(directory)

@@ -15,7 +15,6 @@ use std::time::Instant;
 
 use hairrecon_recon::head_fit::capture_fit::{fit_capture, write_into_capture, Template};
 use hairrecon_recon::head_fit::FitOptions;
-use serde_json::json;
 
 use crate::CmdResult;
 
@@ -59,38 +58,8 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
     };
     let opts = FitOptions { max_exposed_fraction: args.max_exposed, ..FitOptions::default() };
     let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras)?;
-    let (fit, spec) = (&fitted.fit, &fitted.spec);
-    let s = fit.to_canonical;
-    let (axis, degrees) = s.axis_angle_degrees();
-    let rows = |m: glam::DMat3| {
-        let t = m.transpose();
-        [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
-    };
-    let out = json!({
-        "raw_mesh": spec.raw_mesh,
-        "template": template_path.map_or_else(|| "bundled".to_string(), |p| p.display().to_string()),
-        "scalp": scalp_path,
-        "units": spec.units,
-        "frame": spec.frame.as_deref().unwrap_or("canonical"),
-        "to_canonical": {
-            "scale": s.scale,
-            "rotation_axis": axis.to_array(),
-            "rotation_degrees": degrees,
-            "rotation_matrix": rows(s.rotation),
-            "translation": s.translation.to_array(),
-        },
-        "residual_mm": fit.residual_mm,
-        "on_mesh_fraction": fit.score.on_surface,
-        "covered_fraction": fit.score.inside,
-        "exposed_fraction": fit.score.outside,
-        "cost": fit.score.cost,
-        "runner_up_cost": fit.runner_up_cost,
-        "cameras_used": !args.no_cameras,
-        "scalp_error_against_the_captures_scalp": fitted.scalp_error.map(|e| json!({
-            "mean_mm": e.mean * 1e3, "p95_mm": e.p95 * 1e3, "max_mm": e.max * 1e3
-        })),
-        "seconds": t0.elapsed().as_secs_f64(),
-    });
+    let out =
+        fitted.report(template_path.as_deref(), scalp_path.as_deref(), !args.no_cameras, t0.elapsed().as_secs_f64());
     let text = serde_json::to_string_pretty(&out)?;
     if args.write {
         write_into_capture(&json_path, &fitted, &text)?;

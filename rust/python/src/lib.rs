@@ -6,7 +6,8 @@
 //! arguments take float32/uint32 as they are and convert float64, int64 and lists (the `arrays`
 //! module); a wrong dtype or shape is an `InputError` naming the argument. File formats for
 //! scripts (capture.json, PNG, OpenEXR) are in the `io` module; importing COLMAP, Metashape and
-//! transforms.json calibrations in the `importer` module. Built by maturin with pyo3's `abi3-py311`, so
+//! transforms.json calibrations in the `importer` module; fitting the head template to a capture in the
+//! `head_fit` module. Built by maturin with pyo3's `abi3-py311`, so
 //! one wheel serves Blender 4.2+.
 //!
 //! ```python
@@ -28,6 +29,7 @@ use pyo3::types::PyDict;
 
 mod arrays;
 mod error;
+mod head_fit;
 mod importer;
 mod io;
 mod job;
@@ -191,5 +193,6 @@ fn hairrecon(m: &Bound<'_, PyModule>) -> PyResult<()> {
     io::register(m)?;
     job::register(m)?;
     importer::register(m)?;
+    head_fit::register(m)?;
     Ok(())
 }

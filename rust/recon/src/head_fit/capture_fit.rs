@@ -99,6 +99,55 @@ pub fn fit_capture(
     Ok(CaptureFit { fit, head, scalp, scalp_error, spec })
 }
 
+impl CaptureFit {
+    /// The fit as the JSON report that `hairrecon fit-head` prints and [`write_into_capture`] keeps
+    /// as head_fit.json: the similarity to the canonical frame, the fit's residual and fractions,
+    /// and the scalp error when the capture has a scalp. `template` and `scalp` name the template's
+    /// files (`None`: the bundled head); `seconds` is the run's time.
+    pub fn report(
+        &self,
+        template: Option<&Path>,
+        scalp: Option<&Path>,
+        cameras_used: bool,
+        seconds: f64,
+    ) -> serde_json::Value {
+        let (fit, spec) = (&self.fit, &self.spec);
+        let s = fit.to_canonical;
+        let (axis, degrees) = s.axis_angle_degrees();
+        serde_json::json!({
+            "raw_mesh": spec.raw_mesh,
+            "template": template.map_or_else(|| "bundled".to_string(), |p| p.display().to_string()),
+            "scalp": scalp,
+            "units": spec.units,
+            "frame": spec.frame.as_deref().unwrap_or("canonical"),
+            "to_canonical": {
+                "scale": s.scale,
+                "rotation_axis": axis.to_array(),
+                "rotation_degrees": degrees,
+                "rotation_matrix": matrix_rows(s.rotation),
+                "translation": s.translation.to_array(),
+            },
+            "residual_mm": fit.residual_mm,
+            "on_mesh_fraction": fit.score.on_surface,
+            "covered_fraction": fit.score.inside,
+            "exposed_fraction": fit.score.outside,
+            "cost": fit.score.cost,
+            "runner_up_cost": fit.runner_up_cost,
+            "cameras_used": cameras_used,
+            "scalp_error_against_the_captures_scalp": self.scalp_error.map(|e| serde_json::json!({
+                "mean_mm": e.mean * 1e3, "p95_mm": e.p95 * 1e3, "max_mm": e.max * 1e3
+            })),
+            "seconds": seconds,
+        })
+    }
+}
+
+/// A matrix as its rows.
+pub fn matrix_rows(m: glam::DMat3) -> [[f64; 3]; 3] {
+    let t = m.transpose();
+    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+}
+
 /// The files [`write_into_capture`] writes, beside capture.json.
 pub const FITTED_HEAD: &str = "fitted_head.ply";
 pub const FITTED_SCALP: &str = "fitted_scalp.ply";

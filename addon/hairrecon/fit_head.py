@@ -1,0 +1,274 @@
+"""Fit Head: the bundled head registered to the raw mesh (``hairrecon.fit_head``), added to the scene as
+two mesh objects, ``Fitted Head`` and ``Fitted Scalp``, in a ``Fitted Head`` collection, in the scene's
+frame. The user may sculpt or move them; Reconstruct Hair grows hair on the Hair panel's scalp, which
+becomes the fitted scalp when none was chosen (or when the chosen one is an earlier fitted scalp).
+
+The inputs follow Reconstruct Hair's rules: the cameras of the panel's Cameras collection and its Raw
+Mesh (world space, modifiers applied). The fit reads no photo. The library fits in a Python thread with
+the GIL released (a fit takes seconds), while a modal operator keeps Blender responsive and builds the
+objects on the main thread at the end; in background mode (scripts, tests) ``execute`` runs it
+synchronously. A failed fit reports one error and leaves the scene as it was.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import threading
+import time
+import traceback
+from pathlib import Path
+from typing import Optional
+
+import bpy
+
+from . import scene_build, scene_read
+from .core.camera import CameraInputError, blender_camera, opencv_from_blender
+from .core.capture import CaptureInputError, check_mesh, write_fit_capture
+from .session import UserError, library
+
+COLLECTION = "Fitted Head"
+HEAD_NAME = "Fitted Head"
+SCALP_NAME = "Fitted Scalp"
+# custom property marking the objects a fit made ("head" or "scalp")
+MARK = "hairrecon_fitted"
+# what to do when the fit fails, added to the library's message
+ADVICE = "Pick the raw mesh of the head (with the face) in Raw Mesh, or give the scalp by hand (Hair tab > Scalp)"
+
+_RUNNING: dict = {}  # the running fit (modal path), at most one
+
+
+def running() -> bool:
+    return bool(_RUNNING)
+
+
+class FitRun:
+    """One fit: the capture written from the scene, then ``hairrecon.fit_head`` on a thread."""
+
+    def __init__(self, root: Path, capture: Path, raw_name: str):
+        self.root = root
+        self.capture = capture
+        self.raw_name = raw_name  # the raw mesh object, named in messages instead of the temporary file
+        self.result: Optional[dict] = None
+        self.error: Optional[BaseException] = None
+        self.started = time.monotonic()
+        self.thread: Optional[threading.Thread] = None
+
+    @classmethod
+    def prepare(cls, context) -> "FitRun":
+        """Writes the capture (cameras and raw mesh) into a temporary folder. Raises UserError; never
+        changes bpy.data."""
+        hr = library()
+        if not hasattr(hr, "fit_head"):
+            raise UserError(f"the hairrecon library {getattr(hr, '__version__', '?')} has no fit_head; install a newer extension")
+        s = context.scene.hairrecon
+        if s.camera_collection is None:
+            raise UserError("no cameras: pick the collection that holds the calibrated cameras (Hair tab > Cameras)")
+        cams = scene_read.cameras_of(s.camera_collection)
+        if not cams:
+            raise UserError(f"the collection {s.camera_collection.name!r} holds no cameras; add the calibrated cameras to it")
+        try:
+            cameras = [(o.name, opencv_from_blender(blender_camera(o, context.scene))) for o in cams]
+            raw = scene_read.raw_mesh_data(s.raw_mesh, context.evaluated_depsgraph_get())
+            check_mesh(raw, "raw mesh")
+        except (CameraInputError, CaptureInputError) as e:
+            raise UserError(str(e)) from None
+        root = Path(tempfile.mkdtemp(prefix="hairrecon-fit-"))
+        try:
+            capture = write_fit_capture(root / "capture", cameras, raw, hr)
+        except CaptureInputError as e:
+            shutil.rmtree(root, ignore_errors=True)
+            raise UserError(str(e)) from None
+        except Exception:
+            shutil.rmtree(root, ignore_errors=True)
+            raise
+        return cls(root, capture, raw.name)
+
+    def run(self):
+        """The fit itself (any thread: touches no bpy); removes the temporary folder afterwards."""
+        try:
+            self.result = library().fit_head(str(self.capture))
+        except BaseException as e:  # noqa: BLE001 - handed to the main thread
+            self.error = e
+        finally:
+            shutil.rmtree(self.root, ignore_errors=True)
+
+    def start(self):
+        self.thread = threading.Thread(target=self.run, name="hairrecon-fit-head", daemon=True)
+        self.thread.start()
+
+    def done(self) -> bool:
+        return self.thread is None or not self.thread.is_alive()
+
+    def finish(self, context) -> str:
+        """Adds the fitted head and scalp (main thread) and points the panel at them; returns the
+        report. Raises UserError (or the library's errors) and leaves bpy.data as it was."""
+        if self.error is not None:
+            hr = library()
+            if isinstance(self.error, hr.Error):
+                msg = str(self.error).replace(str(self.capture.parent / "raw_mesh.ply"), repr(self.raw_name))
+                raise UserError(f"Fit Head failed: {msg}. {ADVICE}") from None
+            raise self.error
+        fit = self.result
+        created = scene_build.Created()
+        try:
+            coll = created.add(bpy.data.collections.new(COLLECTION))
+            objs = {}
+            for key, name in (("head", HEAD_NAME), ("scalp", SCALP_NAME)):
+                v, t = fit[key]
+                obj = scene_build.mesh_object(created, coll, name, v, t)
+                obj[MARK] = key
+                objs[key] = obj
+        except BaseException:
+            created.remove()
+            raise
+        # everything exists: link it and point the panel at it (undone by undo, not by `created`)
+        context.scene.collection.children.link(coll)
+        used = use_fitted(context.scene.hairrecon, objs["head"], objs["scalp"])
+        seconds = time.monotonic() - self.started
+        scale = fit["to_canonical"]["scale"]
+        msg = (
+            f"Fitted the head in {seconds:.1f} s (residual {fit['residual_mm']:.2f} mm, "
+            f"{100 * fit['on_mesh_fraction']:.0f}% of the skin on the raw mesh, {1 / scale:.4g} scene units per metre): "
+            f"added {objs['head'].name!r} and {objs['scalp'].name!r}; "
+        )
+        if used is objs["scalp"]:
+            msg += f"Reconstruct Hair grows hair on {used.name!r}"
+        else:
+            msg += f"Reconstruct Hair keeps the scalp you chose ({used})"
+        return msg
+
+
+def _is_fitted(obj, key: str) -> bool:
+    try:
+        return obj is not None and obj.get(MARK) == key
+    except ReferenceError:
+        return False
+
+
+def use_fitted(s, head, scalp):
+    """Makes the fitted scalp (and head) the panel's when none was chosen or the chosen one is an
+    earlier fit's; returns the scalp object now used, or a description of the user's choice."""
+    chosen = (
+        s.scalp_object is not None
+        if s.scalp_source == "OBJECT"
+        else (s.head_object is not None and bool(s.scalp_vertex_group))
+    )
+    if chosen and not (s.scalp_source == "OBJECT" and _is_fitted(s.scalp_object, "scalp")):
+        if s.scalp_source == "OBJECT":
+            return repr(s.scalp_object.name)
+        return f"the vertex group {s.scalp_vertex_group!r} of {s.head_object.name!r}"
+    s.scalp_source = "OBJECT"
+    s.scalp_object = scalp
+    if s.head_object is None or _is_fitted(s.head_object, "head"):
+        s.head_object = head
+    return scalp
+
+
+class HAIRRECON_OT_fit_head(bpy.types.Operator):
+    """Fit the bundled head to the raw mesh: adds the fitted head and scalp as objects, and Reconstruct Hair grows hair on the fitted scalp unless another scalp is chosen"""
+
+    bl_idname = "hairrecon.fit_head"
+    bl_label = "Fit Head"
+    bl_options = {"UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        from .operators import _ACTIVE
+
+        if _RUNNING or _ACTIVE:
+            cls.poll_message_set("a head fit or a hair reconstruction is running")
+            return False
+        return context.scene is not None
+
+    def _start(self, context) -> Optional[FitRun]:
+        try:
+            run = FitRun.prepare(context)
+        except UserError as e:
+            self.report({"ERROR"}, str(e))
+            return None
+        except Exception as e:  # noqa: BLE001
+            traceback.print_exc()
+            self.report({"ERROR"}, f"cannot prepare the head fit: {e}")
+            return None
+        return run
+
+    def _finish(self, context, run: FitRun) -> set:
+        try:
+            msg = run.finish(context)
+        except UserError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        except Exception as e:  # noqa: BLE001
+            traceback.print_exc()
+            self.report({"ERROR"}, f"Fit Head failed: {e}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, msg)
+        return {"FINISHED"}
+
+    def execute(self, context):
+        """Synchronous path: background mode, scripts, tests."""
+        run = self._start(context)
+        if run is None:
+            return {"CANCELLED"}
+        run.run()
+        return self._finish(context, run)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        run = self._start(context)
+        if run is None:
+            return {"CANCELLED"}
+        run.start()
+        _RUNNING["run"] = run
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.2, window=context.window)
+        wm.hairrecon_fitting = True
+        if context.workspace is not None:
+            context.workspace.status_text_set("Fitting the head to the raw mesh (Esc: stop waiting, add nothing)")
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _end_modal(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.hairrecon_fitting = False
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        _RUNNING.clear()
+        for area in context.screen.areas if context.screen else ():
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
+    def modal(self, context, event):
+        run: FitRun = _RUNNING.get("run")
+        if run is None:
+            return {"CANCELLED"}
+        if event.type == "ESC" and event.value == "PRESS":
+            # the library's fit cannot be interrupted: it ends on its thread and its result is dropped
+            self._end_modal(context)
+            self.report({"WARNING"}, "Fit Head cancelled; nothing was added")
+            return {"CANCELLED"}
+        if event.type == "TIMER" and run.done():
+            self._end_modal(context)
+            return self._finish(context, run)
+        return {"PASS_THROUGH"}
+
+    def cancel(self, context):
+        if _RUNNING:
+            self._end_modal(context)
+
+
+CLASSES = (HAIRRECON_OT_fit_head,)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
+    _RUNNING.clear()
