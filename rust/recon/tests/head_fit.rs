@@ -278,26 +278,26 @@ fn a_mesh_that_is_not_a_head_fails_with_its_residual() {
     assert!(msg.contains("outside") && msg.contains("landmarks"), "{msg}");
 }
 
+/// Eight cameras on a ring 0.8 m from the head, level with it, looking at its centre (canonical),
+/// in the raw frame that `truth` makes.
+fn ring_cameras(truth: &Similarity) -> Vec<hairrecon_core::Camera> {
+    (0..8)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / 8.0;
+            let eye = Vec3::new(0.8 * a.cos(), 0.8 * a.sin(), 0.1);
+            let c = hairrecon_core::Camera::look_at(eye, Vec3::new(0.0, 0.0, 0.05), Vec3::Z, 0.6, 400, 600).unwrap();
+            hairrecon_core::similarity::transform_camera(&c, truth).unwrap()
+        })
+        .collect()
+}
+
 #[test]
 fn cameras_around_the_head_give_its_up_and_centre() {
-    use hairrecon_core::Camera;
     use hairrecon_recon::head_fit::coarse::camera_prior;
     let head = fixture("head.ply");
     let mut rng = Rng(14);
     let truth = random_similarity(&mut rng);
-    // Eight cameras on a ring 0.8 m from the head, level with it, looking at its centre (canonical).
-    let cameras: Vec<Camera> = (0..8)
-        .map(|k| {
-            let a = std::f32::consts::TAU * k as f32 / 8.0;
-            let eye = Vec3::new(0.8 * a.cos(), 0.8 * a.sin(), 0.1);
-            let c = Camera::look_at(eye, Vec3::new(0.0, 0.0, 0.05), Vec3::Z, 0.6, 400, 600).unwrap();
-            // The same camera in the raw frame: R' = R Tᵣᵀ, t' = s t − R' T.t (camera coordinates scaled by s).
-            let r = c.r().as_dmat3() * truth.rotation.transpose();
-            let t = truth.scale * c.t().as_dvec3() - r * truth.translation;
-            let rows = r.transpose().to_cols_array_2d().map(|row| row.map(|v| v as f32));
-            Camera::new(c.k_rows(), rows, t.as_vec3().to_array(), 400, 600).unwrap()
-        })
-        .collect();
+    let cameras = ring_cameras(&truth);
     let (up, centre) = camera_prior(&cameras).unwrap();
     assert!(up.angle_between(truth.rotation * DVec3::Z).to_degrees() < 0.1, "{up:?}");
     assert!((centre - truth.apply(DVec3::new(0.0, 0.0, 0.05))).length() < 1e-3 * truth.scale);
@@ -306,4 +306,71 @@ fn cameras_around_the_head_give_its_up_and_centre() {
     let (rot, scale, pos) = errors(&fit, &truth, &head);
     println!("with cameras: rotation {rot:.3}°, scale {:.3}%, position {:.2} mm", scale * 100.0, pos * 1e3);
     assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
+}
+
+/// The head under a layer of hair as a raw mesh shows it: the surface pushed out along its normals
+/// by `thickness` over the scalp, the ears, the back of the head and the nape (the hair's outer
+/// surface; the skin under it is not in the mesh), blending to the bare face and throat.
+fn under_hair(head: &TriMesh, scalp: &TriMesh, thickness: f32) -> TriMesh {
+    let key = |v: Vec3| v.to_array().map(f32::to_bits);
+    let on_scalp: std::collections::HashSet<[u32; 3]> = scalp.vertices.iter().map(|&v| key(v)).collect();
+    // Covered: the scalp, and everything level with it or behind the ears down to the nape.
+    let mut h: Vec<f32> = head
+        .vertices
+        .iter()
+        .map(|&v| {
+            let covered = on_scalp.contains(&key(v)) || (v.z > -0.1 && (v.y > -0.02 || v.x.abs() > 0.06));
+            if covered {
+                thickness
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // Smooth the edge of the layer (a few Jacobi steps over the triangles' edges).
+    let mut neighbours = vec![Vec::new(); head.vertices.len()];
+    for t in &head.triangles {
+        for k in 0..3 {
+            neighbours[t[k] as usize].push(t[(k + 1) % 3]);
+            neighbours[t[(k + 1) % 3] as usize].push(t[k]);
+        }
+    }
+    for _ in 0..10 {
+        h = (0..h.len())
+            .map(|i| {
+                let n = &neighbours[i];
+                if n.is_empty() {
+                    h[i]
+                } else {
+                    0.5 * h[i] + 0.5 * n.iter().map(|&j| h[j as usize]).sum::<f32>() / n.len() as f32
+                }
+            })
+            .collect();
+    }
+    let normals = head.compute_vertex_normals();
+    let vertices = head.vertices.iter().zip(&normals).zip(&h).map(|((&v, &n), &d)| v + n * d).collect();
+    TriMesh::new(vertices, head.triangles.clone(), None, None).unwrap()
+}
+
+#[test]
+fn fits_a_head_under_hair_on_a_torso() {
+    // Hair 2 cm thick over the scalp, ears, back and nape, and a torso: the raw mesh shows skin
+    // only on the face and the throat. The fitted scalp lies on the true one.
+    let head = fixture("head.ply");
+    let scalp = fixture("scalp.ply");
+    let hair = under_hair(&head, &scalp, 0.02);
+    let torso = boxed(Vec3::new(-0.225, -0.125, -0.52), Vec3::new(0.225, 0.125, -0.17), 12);
+    let mut rng = Rng(15);
+    let truth = random_similarity(&mut rng);
+    let raw = moved(&add_noise(&merged(&[&hair, &torso]), 0.0005, &mut rng), &truth);
+    let fit = fit_similarity(&template(&head), &raw, Some(&ring_cameras(&truth)), &FitOptions::default()).unwrap();
+    let (rot, scale, pos) = errors(&fit, &truth, &head);
+    println!(
+        "under hair: rotation {rot:.3}°, scale {:.3}%, position {:.2} mm, {:?}",
+        scale * 100.0,
+        pos * 1e3,
+        fit.score
+    );
+    assert!(fit.score.inside > 0.3, "most of the skin is under the hair: {:?}", fit.score);
+    assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL, "rotation {rot}°, scale {scale}, position {pos}");
 }
