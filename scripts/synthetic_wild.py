@@ -11,9 +11,9 @@ height, ``--background clutter``) with its raw mesh. Output: a project folder
                               (0.5 mm standard deviation, in metres before scaling) and holes (about 5% of the
                               triangles, removed in a few blobs); the torso is kept
     gt/                       for scoring only: strands.hair, head.ply, scalp.ply (in the project's frame),
-                              masks/<view>.png (the photos' size), render_info.json and frame.json, the similarity
-                              from the project's frame to canonical metres ({"scale", "rotation" by rows,
-                              "translation"}, capture.json's ``to_canonical``)
+                              masks/<view>.png (the photos' size), render_info.json (how the project was made
+                              under "wild") and frame.json, the similarity from the project's frame to canonical
+                              metres ({"scale", "rotation" by rows, "translation"}, capture.json's ``to_canonical``)
 
 No masks, scalp or head outside ``gt/``. ``hairrecon import colmap WILD/sparse/0 --images WILD/images --mesh
 WILD/mesh.ply --out CAPTURE`` makes it a capture. Seeded: the same seed writes the same files. No bpy here: the
@@ -169,6 +169,7 @@ def make_project(capture: Path, out: Path, seed: int, write_jpeg: Callable[[Path
     raw = hairrecon.read_mesh(str(capture / spec["raw_mesh"]))
     v = raw["vertices"].astype(np.float64)
     v = v + rng.normal(scale=NOISE_M, size=v.shape)
+    n_tris = len(raw["triangles"])
     tris = punch_holes(v, raw["triangles"].astype(np.int64), rng)
     v, tris = drop_unused(v, tris)
     v = to_project(v, s, r, t)
@@ -183,7 +184,17 @@ def make_project(capture: Path, out: Path, seed: int, write_jpeg: Callable[[Path
             hairrecon.write_mesh(
                 str(out / "gt" / name), to_project(m["vertices"], s, r, t).astype(np.float32), m["triangles"], m["uvs"]
             )
-    if (capture / "render_info.json").is_file():
-        shutil.copyfile(capture / "render_info.json", out / "gt" / "render_info.json")
+    info_path = capture / "render_info.json"
+    info = json.loads(info_path.read_text()) if info_path.is_file() else {}
+    info["wild"] = {
+        "jpeg_quality": JPEG_QUALITY,
+        "photo_height": int(spec["views"][0]["height"]),
+        "noise_mm": NOISE_M * 1e3,
+        "holes": HOLES,
+        "triangles_removed": int(n_tris - len(tris)),
+        "triangles_kept": int(len(tris)),
+        "units_per_metre": 1.0 / s,
+    }
+    (out / "gt" / "render_info.json").write_text(json.dumps(info, indent=2) + "\n")
     (out / "gt" / "frame.json").write_text(json.dumps(frame, indent=2) + "\n")
     return frame

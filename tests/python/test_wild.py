@@ -130,7 +130,10 @@ def test_layout(wild):
     assert sorted(p.name for p in (w / "gt").iterdir()) == gt
     assert sorted(p.name for p in w.iterdir()) == ["gt", "images", "mesh.ply", "sparse"], "masks, head or scalp leaked"
     info = json.loads((w / "gt" / "render_info.json").read_text())
-    assert info["background"] == "clutter"
+    assert info["background"] == "clutter" and info["wild"]["photo_height"] == 3 * WORKING_HEIGHT
+    cut = info["wild"]
+    removed = cut["triangles_removed"] / (cut["triangles_removed"] + cut["triangles_kept"])
+    assert 0.045 <= removed <= 0.055, removed
     cams = read_colmap_text(w / "sparse" / "0")
     assert {(c[3], c[4]) for c in cams.values()} == {(128, 3 * WORKING_HEIGHT)}
     f = json.loads((w / "gt" / "frame.json").read_text())
