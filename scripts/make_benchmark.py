@@ -3,13 +3,15 @@
 For each combination it calls ``hairrecon synth-hair`` (the seeded hairstyle generator on the bundled
 head), then ``scripts/render_synthetic.py`` (Cycles render, ground truth, raw mesh). The output folder
 (default ``bench_out/``, gitignored) gets one capture per combination, named
-``<preset>_<style>_<colour>/`` (``<preset>_<style>_<colour>_clutter/`` with ``--background clutter``), plus
+``<preset>_<style>_<colour>/`` (``<preset>_<style>_<colour>_clutter/`` with ``--background clutter``;
+``<preset>_<style>_<colour>_wild/`` with ``--wild``, a photogrammetry project: render_synthetic.py --wild), plus
 ``<preset>_<style>.hair`` and ``benchmark.json`` with what was made and how long each step took. Existing
 captures are skipped unless ``--force``; an interrupted one goes on from the views it finished.
 
     .venv/bin/python scripts/make_benchmark.py --presets test --styles straight curly
     .venv/bin/python scripts/make_benchmark.py --presets paper --styles straight curly --colors brown black
     .venv/bin/python scripts/make_benchmark.py --presets colors --styles wavy --background clutter
+    .venv/bin/python scripts/make_benchmark.py --presets paper --styles straight --wild
 """
 
 from __future__ import annotations
@@ -40,6 +42,12 @@ def main(argv=None):
         choices=["uniform", "clutter"],
         default="uniform",
         help="render_synthetic.py --background: clutter adds a room and a clothed torso (captures named ..._clutter)",
+    )
+    p.add_argument(
+        "--wild",
+        action="store_true",
+        help="render_synthetic.py --wild: photogrammetry projects (JPEG photos at 3x the preset's height, COLMAP "
+        "model, noisy mesh, ground truth under gt/; the clutter background), named ..._wild",
     )
     p.add_argument("--strands", type=int, help="override the preset's strand count")
     p.add_argument("--head", type=Path, default=REPO / "blend_fixtures" / "head.ply")
@@ -76,23 +84,31 @@ def main(argv=None):
                     + ["--head", a.head, "--scalp", a.scalp]
                 )
             for color in a.colors:
-                name = f"{preset}_{style}_{color}" + ("_clutter" if a.background == "clutter" else "")
+                if a.wild:
+                    name = f"{preset}_{style}_{color}_wild"
+                    made = ("sparse/0/images.txt", "mesh.ply", "gt/frame.json")
+                else:
+                    name = f"{preset}_{style}_{color}" + ("_clutter" if a.background == "clutter" else "")
+                    made = ("capture.json", "raw_mesh.ply")
                 cap = a.out / name
-                if not a.force and (cap / "capture.json").is_file() and (cap / "raw_mesh.ply").is_file():
+                if not a.force and all((cap / f).is_file() for f in made):
                     print(f"make_benchmark: {name} exists, skipped (--force remakes it)")
                     continue
                 cmd = [a.python, REPO / "scripts" / "render_synthetic.py", hair, a.head, cap]
                 cmd += ["--scalp", a.scalp, "--preset", preset, "--color", color, "--hairrecon-bin", exe]
-                if a.background != "uniform":
+                if a.wild:
+                    cmd.append("--wild")  # the clutter background too
+                elif a.background != "uniform":
                     cmd += ["--background", a.background]
-                if not a.force and (cap / "images").is_dir():
+                if not a.force and (cap / ("_capture/images" if a.wild else "images")).is_dir():
                     cmd.append("--resume")  # an interrupted render: keep the views it finished
                 t_render = run(cmd)
                 log[name] = {
                     "preset": preset,
                     "style": style,
                     "color": color,
-                    **({"background": a.background} if a.background != "uniform" else {}),
+                    **({"background": a.background} if a.background != "uniform" and not a.wild else {}),
+                    **({"wild": True, "background": "clutter"} if a.wild else {}),
                     "strands": strands,
                     "seed": a.seed,
                     "synth_hair_s": round(t_hair, 1),

@@ -14,6 +14,9 @@ environment, cameras evenly on the upper hemisphere around the head (a Fibonacci
 2:3 images, hair as Blender hair Curves with a Principled Hair BSDF. ``--background clutter`` adds a
 textured room around the capture and a clothed torso under the head, as real photographs have them
 (``synthetic_backdrop.py``); the default, ``uniform``, writes the same files as before the option existed.
+``--wild`` writes, instead of a capture, a photogrammetry project as a user holds it (``synthetic_wild.py``):
+JPEG photos at 3× ``--height`` with the clutter, a COLMAP text model and a noisy raw mesh with holes in a
+random similarity frame, and the ground truth apart under ``gt/``.
 
 Per view, one Cycles render gives the image, the depth (Cycles' Z pass: planar depth along the optical
 axis, checked), and an AOV that carries, for every camera sample whose first hit is hair, the
@@ -59,6 +62,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 # Blender-to-OpenCV camera conversion and sRGB curve are the ones the extension uses.
 import addon_core  # noqa: E402
 import synthetic_backdrop  # noqa: E402
+import synthetic_wild  # noqa: E402
 
 camera = addon_core.load("camera")
 linear_to_srgb = addon_core.load("capture").linear_to_srgb
@@ -79,6 +83,9 @@ PRESETS = {
 # mean coverage (the hair looks like a surface), else wide-ribbon depth maps. Measured: 0.86 on the
 # paper preset with 50,000 strands, 0.30 on the test preset with 2,000.
 PHOTO_FUSION_MIN_COVERAGE = 0.5
+
+# --wild renders the photos at this multiple of --height (the working height the import scales them to).
+WILD_PHOTO_SCALE = 3
 
 # Principled Hair BSDF settings per colour name: melanin-based or colour-based parametrization.
 COLORS = {
@@ -165,10 +172,23 @@ def parse_args(argv=None):
         "--filter-width", type=float, default=1.5, help="Cycles pixel filter width in pixels (Blackman-Harris)"
     )
     p.add_argument("--threads", type=int, default=0, help="Cycles threads (0: all cores)")
+    p.add_argument(
+        "--wild",
+        action="store_true",
+        help="write OUT as a photogrammetry project instead of a capture: JPEG photos at 3x --height with "
+        "--background clutter, a COLMAP text model (sparse/0) and mesh.ply in a random similarity frame (seeded "
+        "by --seed), the ground truth under gt/ (scripts/synthetic_wild.py); import it with hairrecon import colmap",
+    )
     a = p.parse_args(argv)
     for k, v in PRESETS[a.preset].items():
         if k != "strands" and getattr(a, k) is None:
             setattr(a, k, v)
+    if a.wild:
+        if a.no_fuse or a.only_view is not None or a.skip_photos:
+            p.error("--wild needs the raw mesh of every view: no --no-fuse, --only-view or --skip-photos")
+        a.height *= WILD_PHOTO_SCALE
+        a.background = "clutter"
+        a.no_blend = True  # the scene is in the canonical frame, which the project does not know
     return a
 
 
@@ -445,8 +465,43 @@ def find_hairrecon(explicit: str | None) -> str | None:
     return shutil.which("hairrecon")
 
 
+def write_jpeg(path: Path, rgb8: np.ndarray, quality: int = synthetic_wild.JPEG_QUALITY):
+    """An 8-bit sRGB (H, W, 3) array as a JPEG file, with Blender's writer (the bytes as given, no colour
+    transform)."""
+    import bpy  # noqa: PLC0415
+
+    h, w = rgb8.shape[:2]
+    img = bpy.data.images.new(path.stem, w, h, alpha=False)
+    px = np.ones((h, w, 4), np.float32)
+    px[:, :, :3] = rgb8 / 255.0
+    img.pixels.foreach_set(px[::-1].ravel())  # Blender's rows are bottom first
+    img.file_format = "JPEG"
+    img.save(filepath=str(path), quality=quality)
+    bpy.data.images.remove(img)
+
+
 def main(argv=None):
     a = parse_args(argv)
+    if not a.wild:
+        return render_capture(a)
+    t0 = time.time()
+    project = a.out.resolve()
+    a.out = project / "_capture"  # the rendered capture, removed once the project is made (kept for --resume)
+    rc = render_capture(a)
+    if rc != 0:
+        return rc
+    frame = synthetic_wild.make_project(a.out, project, a.seed, write_jpeg)
+    shutil.rmtree(a.out)
+    print(
+        f"render_synthetic: wild project {project} (frame scale {frame['scale']:.5f} m per unit) in "
+        f"{time.time() - t0:.1f} s; import it with: hairrecon import colmap {project}/sparse/0 --images "
+        f"{project}/images --mesh {project}/mesh.ply --out CAPTURE --height {a.height // WILD_PHOTO_SCALE}",
+        flush=True,
+    )
+    return 0
+
+
+def render_capture(a) -> int:
     t_start = time.time()
     import bpy  # noqa: PLC0415  (imported late so that --help works without Blender)
     import mathutils  # noqa: F401, PLC0415

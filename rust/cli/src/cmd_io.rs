@@ -1,20 +1,27 @@
 //! `hairrecon eval`, `convert` and `info`: the strand metric and strand file tools.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+use hairrecon_core::capture::FrameSpec;
 use hairrecon_core::formats::{read_strands, write_strands};
 use hairrecon_core::metric::{evaluate, MetricOptions};
+use hairrecon_core::similarity::{transform_strands, Similarity};
 
 use crate::CmdResult;
 
 #[derive(Debug, clap::Args)]
 pub struct EvalArgs {
-    /// Predicted strands (.hair, .data, .ply or .obj), in metres.
+    /// Predicted strands (.hair, .data, .ply or .obj), in metres (or in the frame of --frame).
     #[arg(long)]
     pred: PathBuf,
-    /// Ground-truth strands, in metres.
+    /// Ground-truth strands, in metres (or in the frame of --frame).
     #[arg(long)]
     gt: PathBuf,
+    /// Both strand sets are in another frame: this JSON file's similarity
+    /// (`{"scale", "rotation" (3 × 3 by rows), "translation"}`, as capture.json's `to_canonical`)
+    /// maps them to metres before scoring, so that the thresholds are millimetres.
+    #[arg(long, value_name = "FRAME.json")]
+    frame: Option<PathBuf>,
     /// Arc-length resampling step in millimetres.
     #[arg(long, default_value_t = 1.0)]
     step_mm: f32,
@@ -44,8 +51,13 @@ pub fn eval(a: EvalArgs) -> CmdResult {
     if !(a.step_mm.is_finite() && a.step_mm > 0.0) {
         return Err(format!("--step-mm must be a positive number of millimetres, got {}", a.step_mm).into());
     }
-    let pred = read_strands(&a.pred)?;
-    let gt = read_strands(&a.gt)?;
+    let mut pred = read_strands(&a.pred)?;
+    let mut gt = read_strands(&a.gt)?;
+    if let Some(path) = &a.frame {
+        let s = read_frame(path)?;
+        pred = transform_strands(&pred, &s).map_err(|e| format!("{}: {e}", a.pred.display()))?;
+        gt = transform_strands(&gt, &s).map_err(|e| format!("{}: {e}", a.gt.display()))?;
+    }
     let opts = MetricOptions { step: a.step_mm * 1e-3, ..MetricOptions::default() };
     let report = evaluate(&pred, &gt, &opts)?;
     if a.json {
@@ -61,6 +73,24 @@ pub fn eval(a: EvalArgs) -> CmdResult {
         print!("{}", report.table());
     }
     Ok(())
+}
+
+/// A similarity file for `eval --frame`: capture.json's `to_canonical` layout.
+fn read_frame(path: &Path) -> Result<Similarity, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("--frame {}: {e}", path.display()))?;
+    let spec: FrameSpec = serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "--frame {}: {e}; expected {{\"scale\": s, \"rotation\": [[..], [..], [..]] (by rows), \"translation\": [x, y, z]}}",
+            path.display()
+        )
+    })?;
+    spec.similarity().ok_or_else(|| {
+        format!(
+            "--frame {}: not a similarity: the scale must be finite and positive, the rotation orthonormal \
+             (within 1e-6) with determinant +1, the translation finite",
+            path.display()
+        )
+    })
 }
 
 pub fn convert(a: ConvertArgs) -> CmdResult {

@@ -1,12 +1,15 @@
 //! Issue 2's acceptance for `hairrecon eval --json`, through the real binary and real files:
 //! the same file scores 100 everywhere; a 1.5 mm perpendicular shift scores 0 at 1 mm and 100 at
-//! 2 and 3 mm; reversed strands score 0 directed and 100 undirected. Also the one-line errors.
+//! 2 and 3 mm; reversed strands score 0 directed and 100 undirected. Also the one-line errors,
+//! and `--frame`: strands in another frame (rotated, 20 units a metre) scored in millimetres.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use glam::Vec3;
+use glam::{DMat3, DVec3, Vec3};
+use hairrecon_core::capture::FrameSpec;
 use hairrecon_core::formats::write_strands;
+use hairrecon_core::similarity::{transform_strands, Similarity};
 use hairrecon_core::StrandSet;
 
 fn bin() -> &'static str {
@@ -32,7 +35,16 @@ fn parallel(offset: Vec3) -> StrandSet {
 }
 
 fn eval_json(pred: &Path, gt: &Path) -> serde_json::Value {
-    let out = Command::new(bin()).args(["eval", "--json", "--pred"]).arg(pred).arg("--gt").arg(gt).output().unwrap();
+    eval_json_in(pred, gt, None)
+}
+
+fn eval_json_in(pred: &Path, gt: &Path, frame: Option<&Path>) -> serde_json::Value {
+    let mut cmd = Command::new(bin());
+    cmd.args(["eval", "--json", "--pred"]).arg(pred).arg("--gt").arg(gt);
+    if let Some(f) = frame {
+        cmd.arg("--frame").arg(f);
+    }
+    let out = cmd.output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert_eq!(text.trim().lines().count(), 1, "stdout must hold exactly one JSON object: {text}");
@@ -90,5 +102,46 @@ fn errors_are_one_clear_line_and_non_zero() {
     let out = Command::new(bin()).args(["convert"]).arg(&bad).arg(d.join("out.xyz")).output().unwrap();
     assert!(!out.status.success());
     assert!(!d.join("out.xyz").exists(), "no output file on failure");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// A photogrammetry-like frame: rotated about a tilted axis, 20 units a metre, offset. The
+/// similarity maps that frame to metres (what `--frame` reads); its inverse puts strands into it.
+fn wild_frame() -> Similarity {
+    let rotation = DMat3::from_axis_angle(DVec3::new(0.3, -0.8, 0.5).normalize(), 2.1);
+    Similarity { scale: 0.05, rotation, translation: DVec3::new(0.4, -1.2, 0.7) }
+}
+
+#[test]
+fn eval_frame_scores_in_millimetres() {
+    let d = tmp("frame");
+    let to_metres = wild_frame();
+    let into_wild = to_metres.inverse();
+    let frame = d.join("frame.json");
+    std::fs::write(&frame, serde_json::to_string(&FrameSpec::of(&to_metres)).unwrap()).unwrap();
+    let gt = d.join("gt.hair");
+    write_strands(&gt, &transform_strands(&parallel(Vec3::ZERO), &into_wild).unwrap()).unwrap();
+    // 1.5 mm off in metres: 0.03 units in the wild frame, which the thresholds read as 30 mm.
+    let shifted = d.join("shifted.hair");
+    let moved = transform_strands(&parallel(Vec3::new(0.0, 0.0015, 0.0)), &into_wild).unwrap();
+    write_strands(&shifted, &moved).unwrap();
+
+    let same = eval_json_in(&gt, &gt, Some(&frame));
+    assert_eq!(f1s(&same, "undirected"), vec![100.0; 3]);
+    let with_frame = eval_json_in(&shifted, &gt, Some(&frame));
+    assert_eq!(f1s(&with_frame, "directed"), vec![0.0, 100.0, 100.0]);
+    assert_eq!(f1s(&with_frame, "undirected"), vec![0.0, 100.0, 100.0]);
+    let without = eval_json_in(&shifted, &gt, None);
+    assert_eq!(f1s(&without, "undirected"), vec![0.0; 3]);
+
+    // Not a similarity (a reflection): one clear line naming the file.
+    let bad = d.join("bad_frame.json");
+    std::fs::write(&bad, r#"{"scale": 1, "rotation": [[1,0,0],[0,1,0],[0,0,-1]], "translation": [0,0,0]}"#).unwrap();
+    let mut cmd = Command::new(bin());
+    let out = cmd.args(["eval", "--pred"]).arg(&gt).arg("--gt").arg(&gt).arg("--frame").arg(&bad).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("bad_frame.json") && err.contains("determinant"), "{err}");
     let _ = std::fs::remove_dir_all(&d);
 }
