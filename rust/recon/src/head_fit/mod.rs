@@ -25,12 +25,14 @@ pub mod coarse;
 pub mod compare;
 pub mod icp;
 pub mod score;
+pub mod surface;
 pub mod template;
 pub mod umeyama;
 
 use glam::{DMat3, DVec3};
-use hairrecon_core::{Bvh, Camera, TriMesh};
+use hairrecon_core::{Camera, TriMesh};
 use rayon::prelude::*;
+use surface::RawSurface;
 use thiserror::Error;
 
 pub use hairrecon_core::similarity::{transform_mesh, Similarity};
@@ -70,6 +72,8 @@ pub struct FitOptions {
     /// A first search that puts this fraction of the template's skin on the raw mesh is final
     /// (a clean head); below it, the second search runs.
     pub clean_fraction: f64,
+    /// Times each raw vertex normal is averaged with its neighbours' ([`surface::RawSurface`]).
+    pub normal_smoothing: usize,
 }
 
 impl Default for FitOptions {
@@ -87,6 +91,7 @@ impl Default for FitOptions {
             max_exposed_fraction: 0.25,
             fallback_scales: vec![1.0, 0.7, 0.5, 0.35, 0.25],
             clean_fraction: 0.9,
+            normal_smoothing: 3,
         }
     }
 }
@@ -155,9 +160,16 @@ pub fn fit_similarity(
         normals: None,
         uvs: None,
     };
-    let bvh = Bvh::new(normalised);
-    let cloud =
-        SurfaceSamples::new(template::sample_surface_normals(bvh.mesh(), |_| true, opts.coarse_samples, 0x5eed_c10d));
+    let bvh = RawSurface::new(normalised, opts.normal_smoothing);
+    // The coarse search's samples carry the smoothed normals too.
+    let samples = template::sample_surface(bvh.mesh(), |_| true, opts.coarse_samples, 0x5eed_c10d);
+    let cloud = SurfaceSamples::new(
+        samples
+            .into_iter()
+            .map(|p| (p, bvh.closest(p, f64::INFINITY).normal))
+            .filter(|(_, n)| *n != DVec3::ZERO)
+            .collect(),
+    );
     let prior = cameras.and_then(coarse::camera_prior).map(|(up, c)| (up, norm.apply(c)));
 
     let tstats = template.stats;
@@ -231,7 +243,7 @@ fn acceptable(score: &PoseScore, opts: &FitOptions) -> bool {
 /// whether something covers a point.
 struct CoarseTarget<'a> {
     cloud: &'a SurfaceSamples,
-    bvh: &'a Bvh,
+    bvh: &'a RawSurface,
 }
 
 impl Target for CoarseTarget<'_> {
@@ -248,7 +260,7 @@ impl Target for CoarseTarget<'_> {
 /// One search over start poses (template → normalised raw).
 struct Search<'a> {
     template: &'a HeadTemplate,
-    bvh: &'a Bvh,
+    bvh: &'a RawSurface,
     cloud: &'a SurfaceSamples,
     opts: &'a FitOptions,
     /// On-surface distance, template units.

@@ -15,7 +15,6 @@
 //! raw triangle is often the inner side of the hair layer, facing the skin.
 
 use glam::DVec3;
-use hairrecon_core::Bvh;
 use rayon::prelude::*;
 
 use super::icp::Target;
@@ -48,19 +47,19 @@ pub const COVER_DEPTH: f64 = 0.5;
 pub fn score_pose(
     points: &[DVec3],
     normals: &[DVec3],
-    bvh: &Bvh,
+    bvh: &(impl Target + ?Sized),
     t: &Similarity,
     tau: f64,
     radius: f64,
     parallel: bool,
 ) -> PoseScore {
-    let reach = (COVER_DEPTH * radius * t.scale) as f32;
+    let reach = COVER_DEPTH * radius * t.scale;
     let one = |(p, n): (&DVec3, &DVec3)| {
         let x = t.apply(*p);
         let d = bvh.closest(x, tau * t.scale).distance / t.scale;
         if d < tau {
             (0u8, d)
-        } else if bvh.ray_cast(x.as_vec3(), (t.rotation * *n).as_vec3(), 0.0, reach).is_some() {
+        } else if bvh.crosses(x, t.rotation * *n, reach) {
             (1, d)
         } else {
             (2, d)
