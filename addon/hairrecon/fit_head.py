@@ -12,6 +12,7 @@ synchronously. A failed fit reports one error and leaves the scene as it was.
 
 from __future__ import annotations
 
+import json
 import shutil
 import tempfile
 import threading
@@ -25,13 +26,15 @@ import bpy
 from . import scene_build, scene_read
 from .core.camera import CameraInputError, blender_camera, opencv_from_blender
 from .core.capture import CaptureInputError, check_mesh, write_fit_capture
-from .session import UserError, library
+from .session import FRAME_PROPERTY, UserError, library
 
 COLLECTION = "Fitted Head"
 HEAD_NAME = "Fitted Head"
 SCALP_NAME = "Fitted Scalp"
 # custom property marking the objects a fit made ("head" or "scalp")
 MARK = "hairrecon_fitted"
+# custom property holding the similarity from the scene's frame to the canonical one (JSON)
+FRAME = FRAME_PROPERTY
 # what to do when the fit fails, added to the library's message
 ADVICE = "Pick the raw mesh of the head (with the face) in Raw Mesh, or give the scalp by hand (Hair tab > Scalp)"
 
@@ -118,6 +121,8 @@ class FitRun:
                 v, t = fit[key]
                 obj = scene_build.mesh_object(created, coll, name, v, t)
                 obj[MARK] = key
+                # the frame the fit found, for Reconstruct Hair's capture (session.py)
+                obj[FRAME] = json.dumps(fit["to_canonical"])
                 objs[key] = obj
         except BaseException:
             created.remove()

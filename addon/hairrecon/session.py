@@ -25,8 +25,30 @@ from .core.capture import CaptureInputError, MeshData, check_mesh, check_views, 
 from . import scene_build, scene_read
 
 
+# custom property that Fit Head puts on the objects it adds: the similarity from the scene's frame to
+# the canonical one, as JSON (``scale``, ``rotation`` by rows, ``translation``)
+FRAME_PROPERTY = "hairrecon_to_canonical"
+
+
 class UserError(Exception):
     """A problem to report to the user as it is (one clear message)."""
+
+
+def fitted_frame(obj) -> Optional[dict]:
+    """The frame Fit Head found, when ``obj`` is one of the objects it added (else None)."""
+    try:
+        text = obj.get(FRAME_PROPERTY) if obj is not None else None
+    except ReferenceError:
+        return None
+    if not isinstance(text, str):
+        return None
+    import json
+
+    try:
+        frame = json.loads(text)
+    except ValueError:
+        return None
+    return frame if isinstance(frame, dict) and {"scale", "rotation", "translation"} <= frame.keys() else None
 
 
 def library():
@@ -139,7 +161,10 @@ class Session:
             capture_dir, out_dir = root / "capture", root / "result"
             capture_dir.mkdir()
         try:
-            write_capture(capture_dir, views, raw, hr, head_mesh=head, scalp_mesh=scalp)
+            # a scalp (or head) that Fit Head added carries the frame it found: the run works in the
+            # canonical frame and its strands come back in the scene's
+            frame = fitted_frame(s.scalp_object if s.scalp_source == "OBJECT" else s.head_object)
+            write_capture(capture_dir, views, raw, hr, head_mesh=head, scalp_mesh=scalp, to_canonical=frame)
             hr.load_capture(str(capture_dir))
         except CaptureInputError as e:
             cls._remove(root, keep)

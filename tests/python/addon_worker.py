@@ -867,7 +867,8 @@ def task_fit_head(p):
             written = hairrecon.read_mesh(str(sess.capture_dir / spec["scalp_mesh"]))
             out["session"] = {"surface": sess.surface_name, "head_mesh": spec.get("head_mesh"),
                               "scalp_triangles": int(len(written["triangles"])),
-                              "scalp_has_uv": written["uvs"] is not None}
+                              "scalp_has_uv": written["uvs"] is not None,
+                              "frame": spec.get("frame"), "to_canonical": spec.get("to_canonical")}
         finally:
             sess.cleanup()
 

@@ -412,6 +412,9 @@ def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     # Reconstruct Hair's capture takes them: the scalp (with UVs made for it) and the head
     assert out["session"]["surface"] == "Fitted Scalp" and out["session"]["head_mesh"], out["session"]
     assert out["session"]["scalp_triangles"] > 0 and out["session"]["scalp_has_uv"]
+    # ... with the frame the fit found: an imported capture that the library runs in metres
+    assert out["session"]["frame"] == "imported", out["session"]
+    assert abs(out["session"]["to_canonical"]["scale"] * SCALE - 1) < 0.01, out["session"]
     print(f"Fit Head in Blender: {out['fit_seconds']:.1f} s, fitted scalp vertices {out['scalp_err_mm']}")
     assert out["scalp_err_mm"]["max"] < 1.0, out["scalp_err_mm"]
     err = out["sphere_error"]

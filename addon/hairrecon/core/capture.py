@@ -227,8 +227,13 @@ def write_capture(
     lib,
     head_mesh: Optional[MeshData] = None,
     scalp_mesh: Optional[MeshData] = None,
+    to_canonical: Optional[dict] = None,
 ) -> Path:
     """Writes ``directory/capture.json`` with images/, masks/ and the meshes; returns its path.
+
+    ``to_canonical`` (``scale``, ``rotation`` by rows, ``translation``: what Fit Head found) makes the
+    capture an imported one in the scene's frame and units, which the library runs in the canonical
+    frame and whose strands come back in the scene's frame.
 
     ``lib`` is the ``hairrecon`` module: its ``write_image``, ``write_mesh`` and ``write_capture`` (which
     checks capture.json against the schema) write the files.
@@ -261,6 +266,9 @@ def write_capture(
         entry.update(cam.to_json())
         entries.append(entry)
     spec = {"version": CAPTURE_VERSION, "units": "metres", "convention": "opencv", "views": entries}
+    if to_canonical is not None:
+        spec["units"], spec["frame"] = "unknown", "imported"
+        spec["to_canonical"] = {k: to_canonical[k] for k in ("scale", "rotation", "translation")}
     for key, mesh, fname in (
         ("raw_mesh", raw_mesh, "raw_mesh.ply"),
         ("head_mesh", head_mesh, "head.ply"),
