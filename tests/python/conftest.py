@@ -40,7 +40,8 @@ def hairrecon_bin() -> Path:
     return REPO / "target" / "release" / "hairrecon"
 
 
-def _head() -> tuple[Path, Path]:
+def head_files() -> tuple[Path, Path]:
+    """The bundled head and scalp (blend_fixtures/)."""
     head = REPO / "blend_fixtures" / "head.ply"
     scalp = REPO / "blend_fixtures" / "scalp.ply"
     for f in (head, scalp):
@@ -49,8 +50,9 @@ def _head() -> tuple[Path, Path]:
     return head, scalp
 
 
-def _hair(exe: Path, tmp: Path, strands: int) -> Path:
-    out = tmp / "gt.hair"
+def straight_hair(exe: Path, tmp: Path, strands: int, name: str = "gt.hair") -> Path:
+    """``hairrecon synth-hair --style straight --seed 0`` on the bundled head, written as ``tmp/name``."""
+    out = tmp / name
     cmd = [str(exe), "synth-hair", "--style", "straight", "--strands", str(strands), "--seed", "0", "--out", str(out)]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0 or not out.is_file():
@@ -69,8 +71,8 @@ def test_capture(tmp_path_factory) -> Path:
         return Path(cache) / "capture"
     tmp = tmp_path_factory.mktemp("synthetic")
     exe = hairrecon_bin()
-    head, scalp = _head()
-    hair = _hair(exe, tmp, 2000)
+    head, scalp = head_files()
+    hair = straight_hair(exe, tmp, 2000)
     cap = Path(cache) / "capture.partial" if cache else tmp / "capture"
     if cache:
         shutil.rmtree(cap, ignore_errors=True)

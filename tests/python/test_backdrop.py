@@ -24,7 +24,7 @@ import hairrecon
 import numpy as np
 import pytest
 
-from conftest import REPO, SCRIPTS, hairrecon_bin
+from conftest import REPO, SCRIPTS, hairrecon_bin, head_files, straight_hair
 
 TINY = ["--preset", "test", "--views", "3", "--height", "96", "--samples", "4", "--seed", "3"]
 
@@ -33,14 +33,8 @@ TINY = ["--preset", "test", "--views", "3", "--height", "96", "--samples", "4", 
 def captures(tmp_path_factory) -> tuple[Path, Path]:
     tmp = tmp_path_factory.mktemp("backdrop")
     exe = hairrecon_bin()
-    head, scalp = REPO / "blend_fixtures" / "head.ply", REPO / "blend_fixtures" / "scalp.ply"
-    hair = tmp / "h.hair"
-    subprocess.run(
-        [exe, "synth-hair", "--style", "straight", "--strands", "300", "--seed", "0", "--out", hair]
-        + ["--head", head, "--scalp", scalp],
-        check=True,
-        capture_output=True,
-    )
+    head, scalp = head_files()
+    hair = straight_hair(exe, tmp, 300, "h.hair")
     caps = []
     for bg, extra in (("clutter", []), ("uniform", ["--no-fuse"])):
         cap = tmp / bg

@@ -27,7 +27,7 @@ import hairrecon
 import numpy as np
 import pytest
 
-from conftest import REPO, SCRIPTS, hairrecon_bin
+from conftest import REPO, SCRIPTS, hairrecon_bin, head_files, straight_hair
 
 WORKING_HEIGHT = 64
 TINY = ["--preset", "test", "--views", "4", "--height", str(WORKING_HEIGHT), "--samples", "4", "--seed", "3"]
@@ -37,14 +37,8 @@ TINY = ["--preset", "test", "--views", "4", "--height", str(WORKING_HEIGHT), "--
 def wild(tmp_path_factory) -> tuple[Path, Path]:
     tmp = tmp_path_factory.mktemp("wild")
     exe = hairrecon_bin()
-    head, scalp = REPO / "blend_fixtures" / "head.ply", REPO / "blend_fixtures" / "scalp.ply"
-    hair = tmp / "h.hair"
-    subprocess.run(
-        [exe, "synth-hair", "--style", "straight", "--strands", "300", "--seed", "0", "--out", hair]
-        + ["--head", head, "--scalp", scalp],
-        check=True,
-        capture_output=True,
-    )
+    head, scalp = head_files()
+    hair = straight_hair(exe, tmp, 300, "h.hair")
     out = tmp / "wild"
     cmd = [sys.executable, SCRIPTS / "render_synthetic.py", hair, head, out, "--scalp", scalp, *TINY, "--wild"]
     r = subprocess.run([str(c) for c in cmd + ["--hairrecon-bin", exe]], capture_output=True, text=True)
