@@ -4,7 +4,8 @@
 //!
 //! Method:
 //! 1. Normalise the raw mesh by its surface centre and radius of gyration (conditioning: any
-//!    scale and offset become unit size at the origin) and build one [`Bvh`] on it.
+//!    scale and offset become unit size at the origin) and build one [`surface::RawSurface`] on
+//!    it (a BVH with smoothed normals).
 //! 2. Coarse search ([`coarse`]): initial poses from the scale prior (the template's radius of
 //!    gyration against the raw mesh's), a centre, and a near-uniform set of rotations of SO(3)
 //!    (with cameras, a ring about their mean up vector first); each refined by a few iterations of
