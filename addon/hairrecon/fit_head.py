@@ -26,7 +26,7 @@ import bpy
 from . import scene_build, scene_read
 from .core.camera import CameraInputError, blender_camera, opencv_from_blender
 from .core.capture import CaptureInputError, check_mesh, write_fit_capture
-from .session import FRAME_PROPERTY, UserError, library
+from .session import FRAME_PROPERTY, UserError, library, panel_cameras
 
 COLLECTION = "Fitted Head"
 HEAD_NAME = "Fitted Head"
@@ -65,11 +65,7 @@ class FitRun:
         if not hasattr(hr, "fit_head"):
             raise UserError(f"the hairrecon library {getattr(hr, '__version__', '?')} has no fit_head; install a newer extension")
         s = context.scene.hairrecon
-        if s.camera_collection is None:
-            raise UserError("no cameras: pick the collection that holds the calibrated cameras (Hair tab > Cameras)")
-        cams = scene_read.cameras_of(s.camera_collection)
-        if not cams:
-            raise UserError(f"the collection {s.camera_collection.name!r} holds no cameras; add the calibrated cameras to it")
+        cams = panel_cameras(s)
         try:
             cameras = [(o.name, opencv_from_blender(blender_camera(o, context.scene))) for o in cams]
             raw = scene_read.raw_mesh_data(s.raw_mesh, context.evaluated_depsgraph_get())

@@ -34,6 +34,16 @@ class UserError(Exception):
     """A problem to report to the user as it is (one clear message)."""
 
 
+def panel_cameras(s) -> list:
+    """The camera objects of the Hair panel's Cameras collection; UserError when there are none."""
+    if s.camera_collection is None:
+        raise UserError("no cameras: pick the collection that holds the calibrated cameras (Hair tab > Cameras)")
+    cams = scene_read.cameras_of(s.camera_collection)
+    if not cams:
+        raise UserError(f"the collection {s.camera_collection.name!r} holds no cameras; add the calibrated cameras to it")
+    return cams
+
+
 def fitted_frame(obj) -> Optional[dict]:
     """The frame Fit Head found, when ``obj`` is one of the objects it added (else None)."""
     try:
@@ -106,11 +116,7 @@ class Session:
         hr = library()
         s = context.scene.hairrecon
         scene = context.scene
-        if s.camera_collection is None:
-            raise UserError("no cameras: pick the collection that holds the calibrated cameras (Hair tab > Cameras)")
-        cams = scene_read.cameras_of(s.camera_collection)
-        if not cams:
-            raise UserError(f"the collection {s.camera_collection.name!r} holds no cameras; add the calibrated cameras to it")
+        cams = panel_cameras(s)
         try:
             views = scene_read.read_views(scene, cams, s.photo_folder, s.mask_folder)
             check_views(views)
