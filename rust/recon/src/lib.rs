@@ -36,6 +36,7 @@ pub mod grow;
 pub mod head_fit;
 pub mod hull;
 pub mod laplace;
+pub mod masks;
 pub mod orient2d;
 pub mod oriented_points;
 pub mod parting;

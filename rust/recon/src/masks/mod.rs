@@ -1,0 +1,4 @@
+//! Hair masks without ground truth.
+
+pub mod matting;
+pub mod trimap;
