@@ -39,8 +39,9 @@ pub struct MattingOptions {
     /// colour-line model more strictly. Default 1e-5.
     pub epsilon: f32,
     /// Weight of `(alpha − prior)²` on unknown pixels when a prior is given. Small values let the
-    /// image decide and only break ties (regions the Laplacian cannot reach from known pixels);
-    /// large values pull alpha towards the prior. Default 1e-3.
+    /// image decide and only break ties (where colour says little, or no known pixel is near);
+    /// large values pull alpha towards the prior. Default 1e-4: on a synthetic composite with a
+    /// 9x9-blurred prior, 1e-3 already raised the band's mean error from 0.037 to 0.045.
     pub prior_weight: f32,
     /// The most conjugate-gradient iterations; the last iterate is returned if the tolerance is
     /// not met by then. Default 2000.
@@ -51,7 +52,7 @@ pub struct MattingOptions {
 
 impl Default for MattingOptions {
     fn default() -> Self {
-        Self { epsilon: 1e-5, prior_weight: 1e-3, max_iterations: 2000, tolerance: 1e-6 }
+        Self { epsilon: 1e-5, prior_weight: 1e-4, max_iterations: 2000, tolerance: 1e-6 }
     }
 }
 
@@ -672,7 +673,8 @@ mod tests {
         };
         let alpha = closed_form_matting(&image, &trimap, None, &MattingOptions::default()).unwrap();
         let max_err = alpha.iter().zip(&truth).map(|(a, t)| (a - t).abs()).fold(0.0f32, f32::max);
-        assert!(max_err < 5e-3, "max error {max_err}");
+        println!("max error where the colour-line model holds: {max_err}");
+        assert!(max_err < 2e-3, "max error {max_err}");
     }
 
     #[test]
@@ -695,10 +697,12 @@ mod tests {
              thresholded prior {err_threshold:.4}; IoU matting {iou_alpha:.4}, prior {iou_prior:.4}",
             trimap.unknown_count()
         );
-        assert!(err < 0.08, "mean absolute error {err}");
-        assert!(err_no_prior < 0.08, "mean absolute error without prior {err_no_prior}");
-        assert!(err < 0.5 * err_prior && err < 0.5 * err_threshold, "{err} vs {err_prior}, {err_threshold}");
-        assert!(iou_alpha >= 0.95 && iou_alpha > iou_prior + 0.05, "IoU {iou_alpha} (prior {iou_prior})");
+        // Measured: MAE 0.0164 (0.0162 without prior) against 0.184 for the prior and 0.120 for the
+        // thresholded prior; IoU 0.989 against 0.834. The bounds leave about 1.5x of the error.
+        assert!(err < 0.025, "mean absolute error {err}");
+        assert!(err_no_prior < 0.025, "mean absolute error without prior {err_no_prior}");
+        assert!(err < 0.25 * err_prior && err < 0.25 * err_threshold, "{err} vs {err_prior}, {err_threshold}");
+        assert!(iou_alpha >= 0.975 && iou_alpha > iou_prior + 0.1, "IoU {iou_alpha} (prior {iou_prior})");
         assert!(alpha.iter().all(|a| (0.0..=1.0).contains(a)));
         for (i, &t) in trimap.data.iter().enumerate() {
             match t {
@@ -759,8 +763,11 @@ mod tests {
         let red: Vec<f32> = image(6, 5).data.iter().step_by(3).copied().collect();
         let err = closed_form_matting(&image(6, 5), &trimap(6, 5, UNKNOWN), Some(&red), &zero_weight).unwrap_err();
         assert!(matches!(err, MattingError::NoKnownPixels), "{err}");
-        let alpha = closed_form_matting(&image(6, 5), &trimap(6, 5, UNKNOWN), Some(&red), &opts).unwrap();
-        assert!(alpha.iter().zip(&red).all(|(a, r)| (a - r).abs() < 0.03), "{alpha:?} vs {red:?}");
+        // This image's colours jump from pixel to pixel, so the slope is steep and a weight above
+        // the default keeps the shrinkage small.
+        let firm = MattingOptions { prior_weight: 1e-2, ..opts.clone() };
+        let alpha = closed_form_matting(&image(6, 5), &trimap(6, 5, UNKNOWN), Some(&red), &firm).unwrap();
+        assert!(alpha.iter().zip(&red).all(|(a, r)| (a - r).abs() < 0.01), "{alpha:?} vs {red:?}");
     }
 
     #[test]
@@ -804,7 +811,7 @@ mod tests {
     fn timing_341x512() {
         let (w, h) = (341usize, 512usize);
         let (image, truth, prior) = synthetic(w, h, 3);
-        let trimap = Trimap::from_probability(&truth, w as u32, h as u32, 5.0);
+        let trimap = Trimap::from_probability(&truth, w as u32, h as u32, 6.0);
         let opts = MattingOptions::default();
         let _ = closed_form_matting(&image, &trimap, Some(&prior), &opts).unwrap();
         let start = std::time::Instant::now();
