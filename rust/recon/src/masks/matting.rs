@@ -166,7 +166,8 @@ pub enum MattingError {
 ///
 /// The result is row-major like the trimap and clamped to `[0, 1]`; prior values are clamped to
 /// `[0, 1]` before use. Without unknown pixels the trimap's 0/1 comes back unchanged. An image
-/// narrower or lower than 3 pixels has no windows, so its unknown pixels take the prior.
+/// narrower or lower than 3 pixels has no windows, so its unknown pixels take the prior. If the
+/// solver has not met `opts.tolerance` after `opts.max_iterations`, its last iterate is used.
 pub fn closed_form_matting(
     image: &RgbImage32,
     trimap: &Trimap,
@@ -256,20 +257,13 @@ fn validate(
             return Err(MattingError::PriorValue { x, y, value: prior[i] });
         }
     }
-    if !(opts.epsilon > 0.0 && opts.epsilon.is_finite()) {
-        return Err(MattingError::Options(format!("epsilon must be positive and finite, got {}", opts.epsilon)));
-    }
-    if !(opts.prior_weight >= 0.0 && opts.prior_weight.is_finite()) {
-        return Err(MattingError::Options(format!(
-            "prior_weight must be zero or positive and finite, got {}",
-            opts.prior_weight
-        )));
-    }
-    if !(opts.tolerance >= 0.0 && opts.tolerance.is_finite()) {
-        return Err(MattingError::Options(format!(
-            "tolerance must be zero or positive and finite, got {}",
-            opts.tolerance
-        )));
+    let checks = [
+        ("epsilon", opts.epsilon, opts.epsilon > 0.0, "positive"),
+        ("prior_weight", opts.prior_weight, opts.prior_weight >= 0.0, "zero or positive"),
+        ("tolerance", opts.tolerance, opts.tolerance >= 0.0, "zero or positive"),
+    ];
+    if let Some((name, value, _, range)) = checks.into_iter().find(|c| !c.2 || !c.1.is_finite()) {
+        return Err(MattingError::Options(format!("{name} must be {range} and finite, got {value}")));
     }
     Ok(())
 }
@@ -370,6 +364,7 @@ fn inverse3(m: &[f64; 9]) -> [f64; 9] {
 
 /// A sparse symmetric matrix over the unknowns in compressed sparse rows, with its right-hand
 /// side and diagonal (for the Jacobi preconditioner).
+#[derive(Default)]
 struct System {
     row_start: Vec<usize>,
     columns: Vec<u32>,
@@ -439,46 +434,24 @@ fn assemble(
         }
         (diagonal, rhs)
     };
-    struct Part {
-        lengths: Vec<usize>,
-        columns: Vec<u32>,
-        values: Vec<f64>,
-        diagonal: Vec<f64>,
-        rhs: Vec<f64>,
-    }
-    let parts: Vec<Part> = unknowns
+    // Each chunk of rows becomes a small CSR matrix of its own; they are stacked in order.
+    let parts: Vec<System> = unknowns
         .par_chunks(CHUNK)
         .map(|chunk| {
-            let mut part = Part {
-                lengths: Vec::with_capacity(chunk.len()),
-                columns: Vec::with_capacity(chunk.len() * 25),
-                values: Vec::with_capacity(chunk.len() * 25),
-                diagonal: Vec::with_capacity(chunk.len()),
-                rhs: Vec::with_capacity(chunk.len()),
-            };
+            let mut part = System { row_start: vec![0], ..System::default() };
             for &p in chunk {
-                let before = part.columns.len();
                 let (d, b) = row(p, &mut part.columns, &mut part.values);
-                part.lengths.push(part.columns.len() - before);
+                part.row_start.push(part.columns.len());
                 part.diagonal.push(d);
                 part.rhs.push(b);
             }
             part
         })
         .collect();
-    let nnz = parts.iter().map(|p| p.columns.len()).sum();
-    let mut system = System {
-        row_start: Vec::with_capacity(unknowns.len() + 1),
-        columns: Vec::with_capacity(nnz),
-        values: Vec::with_capacity(nnz),
-        diagonal: Vec::with_capacity(unknowns.len()),
-        rhs: Vec::with_capacity(unknowns.len()),
-    };
-    system.row_start.push(0);
+    let mut system = System { row_start: vec![0], ..System::default() };
     for part in parts {
-        for len in part.lengths {
-            system.row_start.push(system.row_start.last().copied().unwrap_or(0) + len);
-        }
+        let offset = system.columns.len();
+        system.row_start.extend(part.row_start[1..].iter().map(|&s| s + offset));
         system.columns.extend(part.columns);
         system.values.extend(part.values);
         system.diagonal.extend(part.diagonal);
@@ -534,7 +507,7 @@ fn conjugate_gradients(system: &System, mut x: Vec<f64>, max_iterations: usize, 
         }
         system.multiply(&p, &mut q);
         let pq = dot(&p, &q);
-        if !(pq > 0.0) {
+        if pq.is_nan() || pq <= 0.0 {
             // Only rounding can make pᵀAp non-positive for a positive definite A; the iterate is
             // as good as it gets.
             break;
@@ -659,16 +632,9 @@ mod tests {
         let trimap = Trimap {
             width: w as u32,
             height: h as u32,
+            // Background left of column 10, foreground right of column 40.
             data: (0..w * h)
-                .map(|p| {
-                    if p % w < 10 {
-                        BACKGROUND
-                    } else if p % w > 40 {
-                        FOREGROUND
-                    } else {
-                        UNKNOWN
-                    }
-                })
+                .map(|p| [BACKGROUND, UNKNOWN, FOREGROUND][(p % w >= 10) as usize + (p % w > 40) as usize])
                 .collect(),
         };
         let alpha = closed_form_matting(&image, &trimap, None, &MattingOptions::default()).unwrap();
