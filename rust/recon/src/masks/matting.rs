@@ -26,6 +26,7 @@
 //! of an image of at least 3x3 lies in one. All parallel work is split into fixed chunks whose
 //! partial results are combined in order, so the output is bit-identical for any thread count.
 
+use glam::{DMat3, DVec3};
 use hairrecon_core::image_io::RgbImage32;
 use rayon::prelude::*;
 
@@ -279,9 +280,9 @@ const CHUNK: usize = 2048;
 #[derive(Clone, Copy)]
 struct WindowStats {
     /// Mean colour.
-    mean: [f64; 3],
-    /// `(Σ + ε/9 · I₃)⁻¹`, row-major.
-    inverse: [f64; 9],
+    mean: DVec3,
+    /// `(Σ + ε/9 · I₃)⁻¹`.
+    inverse: DMat3,
 }
 
 /// The windows that touch an unknown pixel, found by their centre pixel.
@@ -310,56 +311,27 @@ impl Windows {
     }
 }
 
-fn colour(image: &RgbImage32, p: usize) -> [f64; 3] {
+fn colour(image: &RgbImage32, p: usize) -> DVec3 {
     let d = &image.data[3 * p..3 * p + 3];
-    [d[0] as f64, d[1] as f64, d[2] as f64]
+    DVec3::new(d[0] as f64, d[1] as f64, d[2] as f64)
 }
 
 fn window_stats(image: &RgbImage32, cx: usize, cy: usize, epsilon: f64) -> WindowStats {
     let w = image.width as usize;
-    let mut sum = [0.0f64; 3];
-    let mut outer = [0.0f64; 9];
+    let outer = |c: DVec3| DMat3::from_cols(c * c.x, c * c.y, c * c.z);
+    let (mut sum, mut sum_outer) = (DVec3::ZERO, DMat3::ZERO);
     for y in cy - 1..=cy + 1 {
         for x in cx - 1..=cx + 1 {
             let c = colour(image, y * w + x);
-            for r in 0..3 {
-                sum[r] += c[r];
-                for s in 0..3 {
-                    outer[3 * r + s] += c[r] * c[s];
-                }
-            }
+            sum += c;
+            sum_outer += outer(c);
         }
     }
-    let mean = sum.map(|s| s / 9.0);
-    let mut cov = [0.0f64; 9];
-    for r in 0..3 {
-        for s in 0..3 {
-            cov[3 * r + s] = outer[3 * r + s] / 9.0 - mean[r] * mean[s];
-        }
-        cov[4 * r] += epsilon / 9.0;
-    }
-    WindowStats { mean, inverse: inverse3(&cov) }
-}
-
-/// The inverse of a symmetric positive definite 3x3 matrix by its adjugate. The covariance plus
-/// `ε/9` on the diagonal has a determinant of at least `(ε/9)³`, so it is never singular.
-fn inverse3(m: &[f64; 9]) -> [f64; 9] {
-    let c00 = m[4] * m[8] - m[5] * m[7];
-    let c01 = m[5] * m[6] - m[3] * m[8];
-    let c02 = m[3] * m[7] - m[4] * m[6];
-    let det = m[0] * c00 + m[1] * c01 + m[2] * c02;
-    let inv_det = 1.0 / det;
-    [
-        c00 * inv_det,
-        (m[2] * m[7] - m[1] * m[8]) * inv_det,
-        (m[1] * m[5] - m[2] * m[4]) * inv_det,
-        c01 * inv_det,
-        (m[0] * m[8] - m[2] * m[6]) * inv_det,
-        (m[2] * m[3] - m[0] * m[5]) * inv_det,
-        c02 * inv_det,
-        (m[1] * m[6] - m[0] * m[7]) * inv_det,
-        (m[0] * m[4] - m[1] * m[3]) * inv_det,
-    ]
+    let mean = sum / 9.0;
+    // The biased covariance plus ε/9 on the diagonal is symmetric positive definite with a
+    // determinant of at least (ε/9)³, so its inverse always exists.
+    let cov = sum_outer * (1.0 / 9.0) - outer(mean) + DMat3::from_diagonal(DVec3::splat(epsilon / 9.0));
+    WindowStats { mean, inverse: cov.inverse() }
 }
 
 /// A sparse symmetric matrix over the unknowns in compressed sparse rows, with its right-hand
@@ -395,18 +367,12 @@ fn assemble(
             for cx in x.saturating_sub(1).max(1)..=(x + 1).min(w - 2) {
                 let k = windows.at[cy * w + cx];
                 debug_assert_ne!(k, NOT_UNKNOWN, "a window holding an unknown pixel has statistics");
-                let WindowStats { mean, inverse: m } = windows.stats[k as usize];
-                let di = [ci[0] - mean[0], ci[1] - mean[1], ci[2] - mean[2]];
-                // a = (Σ + ε/9 I)⁻¹ (I_i − μ), shared by the window's nine entries of this row.
-                let a = [
-                    m[0] * di[0] + m[1] * di[1] + m[2] * di[2],
-                    m[3] * di[0] + m[4] * di[1] + m[5] * di[2],
-                    m[6] * di[0] + m[7] * di[1] + m[8] * di[2],
-                ];
+                let WindowStats { mean, inverse } = windows.stats[k as usize];
+                // (Σ + ε/9 I)⁻¹ (I_i − μ), shared by the window's nine entries of this row.
+                let a = inverse * (ci - mean);
                 for jy in cy - 1..=cy + 1 {
                     for jx in cx - 1..=cx + 1 {
-                        let cj = colour(image, jy * w + jx);
-                        let dot = a[0] * (cj[0] - mean[0]) + a[1] * (cj[1] - mean[1]) + a[2] * (cj[2] - mean[2]);
+                        let dot = a.dot(colour(image, jy * w + jx) - mean);
                         let slot = (jy + 2 - y) * 5 + (jx + 2 - x);
                         acc[slot] += -(1.0 + dot) / 9.0;
                         touched[slot] = true;
@@ -461,31 +427,37 @@ fn assemble(
 }
 
 impl System {
-    /// `out = A x`, each row summed in column order.
-    fn multiply(&self, x: &[f64], out: &mut [f64]) {
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-            for (i, o) in out.iter_mut().enumerate() {
-                let r = c * CHUNK + i;
-                let (start, end) = (self.row_start[r], self.row_start[r + 1]);
-                *o = self.columns[start..end]
-                    .iter()
-                    .zip(&self.values[start..end])
-                    .map(|(&j, &v)| v * x[j as usize])
-                    .sum();
-            }
-        });
+    /// `q = A p`, returning `pᵀ q`. Rows are summed in column order and `pᵀ q` per fixed chunk,
+    /// then over the chunks in order, so the result does not depend on the thread count.
+    fn multiply_dot(&self, p: &[f64], q: &mut [f64]) -> f64 {
+        let partial: Vec<f64> = q
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, q)| {
+                let mut sum = 0.0;
+                for (i, o) in q.iter_mut().enumerate() {
+                    let r = c * CHUNK + i;
+                    let (start, end) = (self.row_start[r], self.row_start[r + 1]);
+                    let cols = self.columns[start..end].iter().zip(&self.values[start..end]);
+                    *o = cols.map(|(&j, &v)| v * p[j as usize]).sum();
+                    sum += p[r] * *o;
+                }
+                sum
+            })
+            .collect();
+        partial.iter().sum()
     }
 }
 
-/// `Σ a_i b_i`, summed per fixed chunk and then over the chunks in order (deterministic).
+/// `Σ a_i b_i` in order.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let partial: Vec<f64> =
-        a.par_chunks(CHUNK).zip(b.par_chunks(CHUNK)).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect();
-    partial.iter().sum()
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// Jacobi-preconditioned conjugate gradients from `x`, until `‖b − A x‖ ≤ tolerance · ‖b‖` or
-/// `max_iterations`.
+/// `max_iterations`. An iteration makes three parallel passes (the mat-vec with `pᵀAp`; the
+/// updates of `x`, `r`, `z` with `rᵀz` and `rᵀr`; the new direction), since with bands of a few
+/// thousand pixels the cost of starting a pass is comparable to its work.
 fn conjugate_gradients(system: &System, mut x: Vec<f64>, max_iterations: usize, tolerance: f64) -> Vec<f64> {
     let n = x.len();
     let b = &system.rhs;
@@ -496,30 +468,49 @@ fn conjugate_gradients(system: &System, mut x: Vec<f64>, max_iterations: usize, 
     }
     let inv_diag: Vec<f64> = system.diagonal.iter().map(|&d| if d > 0.0 { 1.0 / d } else { 1.0 }).collect();
     let mut q = vec![0.0; n];
-    system.multiply(&x, &mut q);
+    system.multiply_dot(&x, &mut q);
     let mut r: Vec<f64> = b.iter().zip(&q).map(|(b, q)| b - q).collect();
     let mut z: Vec<f64> = r.iter().zip(&inv_diag).map(|(r, d)| r * d).collect();
     let mut p = z.clone();
-    let mut rz = dot(&r, &z);
+    let (mut rz, mut rr) = (dot(&r, &z), dot(&r, &r));
     for _ in 0..max_iterations {
-        if dot(&r, &r).sqrt() <= tolerance * b_norm {
+        if rr.sqrt() <= tolerance * b_norm {
             break;
         }
-        system.multiply(&p, &mut q);
-        let pq = dot(&p, &q);
+        let pq = system.multiply_dot(&p, &mut q);
         if pq.is_nan() || pq <= 0.0 {
             // Only rounding can make pᵀAp non-positive for a positive definite A; the iterate is
             // as good as it gets.
             break;
         }
         let step = rz / pq;
-        x.par_iter_mut().zip(&p).for_each(|(x, p)| *x += step * p);
-        r.par_iter_mut().zip(&q).for_each(|(r, q)| *r -= step * q);
-        z.par_iter_mut().zip(&r).zip(&inv_diag).for_each(|((z, r), d)| *z = r * d);
-        let rz_next = dot(&r, &z);
+        let partial: Vec<(f64, f64)> = x
+            .par_chunks_mut(CHUNK)
+            .zip(r.par_chunks_mut(CHUNK))
+            .zip(z.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(c, ((x, r), z))| {
+                let (mut rz, mut rr) = (0.0, 0.0);
+                for i in 0..x.len() {
+                    let k = c * CHUNK + i;
+                    x[i] += step * p[k];
+                    r[i] -= step * q[k];
+                    z[i] = r[i] * inv_diag[k];
+                    rz += r[i] * z[i];
+                    rr += r[i] * r[i];
+                }
+                (rz, rr)
+            })
+            .collect();
+        let rz_next: f64 = partial.iter().map(|s| s.0).sum();
+        rr = partial.iter().map(|s| s.1).sum();
         let beta = rz_next / rz;
         rz = rz_next;
-        p.par_iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+        p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| {
+            for (p, z) in p.iter_mut().zip(z) {
+                *p = z + beta * *p;
+            }
+        });
     }
     x
 }
