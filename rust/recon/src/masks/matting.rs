@@ -41,8 +41,8 @@ pub struct MattingOptions {
     pub epsilon: f32,
     /// Weight of `(alpha − prior)²` on unknown pixels when a prior is given. Small values let the
     /// image decide and only break ties (where colour says little, or no known pixel is near);
-    /// large values pull alpha towards the prior. Default 1e-4: on a synthetic composite with a
-    /// 9x9-blurred prior, 1e-3 already raised the band's mean error from 0.037 to 0.045.
+    /// large values pull alpha towards the prior. Default 1e-4: on a 341x512 synthetic composite
+    /// with a 9x9-blurred prior, the band's mean absolute error was 0.037 at 1e-4 and 0.045 at 1e-3.
     pub prior_weight: f32,
     /// The most conjugate-gradient iterations; the last iterate is returned if the tolerance is
     /// not met by then. Default 2000.
