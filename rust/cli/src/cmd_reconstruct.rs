@@ -9,20 +9,15 @@
 //! finished stay (complete, listed in `report.json`, for `--from`), no result is written, and the
 //! process exits with code 130.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::Mutex;
-use std::time::{Duration, Instant};
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::metric::MetricReport;
 use hairrecon_recon::config::{ConfigFile, ReconstructConfig, Stage};
 use hairrecon_recon::curl::CurlError;
-use hairrecon_recon::progress::Progress;
 use hairrecon_recon::{reconstruct, Plan, ReconError};
-use indicatif::ProgressBar;
 
-use crate::interrupt::Interrupt;
+use crate::progress::Bars;
 use crate::CmdResult;
 
 #[derive(Debug, clap::Args)]
@@ -124,66 +119,6 @@ pub struct ReconstructArgs {
     print_config: bool,
 }
 
-/// One indicatif bar per stage, replaced when the stage changes. When stderr is not a terminal
-/// (a log file, a pipe), the bars are hidden and a plain line goes to stderr when the stage changes
-/// and then at most every [`LOG_EVERY`].
-struct Bars {
-    interrupt: Interrupt,
-    current: Mutex<Option<(String, ProgressBar)>>,
-    log: Option<Mutex<(String, Instant)>>,
-    start: Instant,
-}
-
-const LOG_EVERY: Duration = Duration::from_secs(10);
-
-impl std::fmt::Debug for Bars {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("Bars")
-    }
-}
-
-const STEPS: u64 = 1000;
-
-impl Progress for Bars {
-    fn update(&self, stage: &str, fraction: f32, message: &str) {
-        if let Some(log) = &self.log {
-            let Ok(mut last) = log.lock() else { return };
-            if last.0 != stage || last.1.elapsed() >= LOG_EVERY {
-                let t = self.start.elapsed().as_secs_f64();
-                eprintln!("[{t:7.1} s] {stage} {:3.0}% {message}", 100.0 * fraction.clamp(0.0, 1.0));
-                *last = (stage.to_string(), Instant::now());
-            }
-            return;
-        }
-        let Ok(mut cur) = self.current.lock() else { return };
-        if cur.as_ref().is_none_or(|(s, _)| s != stage) {
-            if let Some((_, pb)) = cur.take() {
-                pb.set_position(STEPS);
-                pb.finish();
-            }
-            *cur = Some((stage.to_string(), crate::progress::bar(STEPS, stage)));
-        }
-        if let Some((_, pb)) = cur.as_ref() {
-            pb.set_position((fraction.clamp(0.0, 1.0) * STEPS as f32) as u64);
-            pb.set_message(message.to_string());
-        }
-    }
-    fn cancelled(&self) -> bool {
-        self.interrupt.requested()
-    }
-}
-
-impl Bars {
-    fn finish(&self) {
-        if let Ok(mut cur) = self.current.lock() {
-            if let Some((_, pb)) = cur.take() {
-                pb.set_position(STEPS);
-                pb.finish();
-            }
-        }
-    }
-}
-
 /// The configuration of the arguments: `--config` (else the defaults) with the options given.
 fn config(a: &ReconstructArgs) -> Result<ReconstructConfig, Box<dyn std::error::Error + Send + Sync>> {
     let mut c = match &a.config {
@@ -283,8 +218,7 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
     } else {
         Capture::load(&a.capture)?
     };
-    let log = (!std::io::stderr().is_terminal()).then(|| Mutex::new((String::new(), Instant::now())));
-    let bars = Bars { interrupt: Interrupt::listen(), current: Mutex::new(None), log, start: Instant::now() };
+    let bars = Bars::new();
     let out = reconstruct(&capture, &a.out, &cfg, plan, &bars);
     bars.finish();
     if matches!(out, Err(ReconError::Cancelled(_))) && bars.interrupt.requested() {

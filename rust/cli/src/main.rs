@@ -9,6 +9,7 @@ mod cmd_fit_head;
 mod cmd_fuse;
 mod cmd_import;
 mod cmd_io;
+mod cmd_masks;
 mod cmd_reconstruct;
 mod cmd_synth;
 mod cmd_toy;
@@ -43,6 +44,8 @@ enum Command {
     ToyLetters(cmd_toy::ToyLettersArgs),
     /// Fit the head template to a capture's raw mesh: the similarity to the canonical frame, as JSON.
     FitHead(cmd_fit_head::FitHeadArgs),
+    /// Hair masks of every view without ground truth: the raw mesh's hair region, matted.
+    Masks(cmd_masks::MasksArgs),
     /// Reconstruct hair strands from a capture folder.
     Reconstruct(cmd_reconstruct::ReconstructArgs),
     /// Make a capture folder from a photogrammetry tool's calibration, photos and raw mesh.
@@ -62,6 +65,7 @@ fn main() {
         Command::ToyAa(a) => cmd_toy::run_aa(a),
         Command::ToyLetters(a) => cmd_toy::run_letters(a),
         Command::FitHead(a) => cmd_fit_head::run(a),
+        Command::Masks(a) => cmd_masks::run(a),
         Command::Reconstruct(a) => cmd_reconstruct::run(a),
         Command::Import(c) => cmd_import::run(c),
     };

@@ -187,6 +187,16 @@ pub fn write_mesh(path: impl AsRef<Path>, mesh: &TriMesh) -> Result<()> {
     }
 }
 
+/// Writes a triangle mesh as binary PLY with a per-vertex `quality` (see
+/// [`ply::write_ply_mesh_with_quality`]); atomically. Only `.ply` holds it.
+pub fn write_mesh_with_quality(path: impl AsRef<Path>, mesh: &TriMesh, quality: &[f32]) -> Result<()> {
+    let path = path.as_ref();
+    match extension(path).as_str() {
+        "ply" => atomic_write(path, |w| ply::write_ply_mesh_with_quality(w, mesh, Some(quality))),
+        ext => Err(unknown_extension(path, ext, "ply")),
+    }
+}
+
 /// Reads strands from `.hair`, `.data`, `.ply` (polylines) or `.obj` (lines). A strand of fewer
 /// than two points is an error; see [`read_strands_with`] to skip such strands.
 pub fn read_strands(path: impl AsRef<Path>) -> Result<StrandSet> {

@@ -557,6 +557,22 @@ pub fn read_ply_mesh_bytes(bytes: &[u8]) -> Result<TriMesh> {
 
 /// Writes a mesh as binary little-endian PLY.
 pub fn write_ply_mesh<W: Write>(w: &mut W, mesh: &TriMesh) -> Result<()> {
+    write_ply_mesh_with_quality(w, mesh, None)
+}
+
+/// Writes a mesh as binary little-endian PLY with a per-vertex scalar `quality` (the property
+/// MeshLab and CloudCompare show as a colour ramp), one value per vertex.
+pub fn write_ply_mesh_with_quality<W: Write>(w: &mut W, mesh: &TriMesh, quality: Option<&[f32]>) -> Result<()> {
+    if let Some(q) = quality {
+        if q.len() != mesh.vertices.len() {
+            return Err(FormatErrorKind::CountMismatch {
+                what: "per-vertex quality values",
+                expected: mesh.vertices.len() as u64,
+                found: q.len() as u64,
+            }
+            .into());
+        }
+    }
     let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment written by hairrecon\n");
     h += &format!("element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", mesh.vertices.len());
     if mesh.normals.is_some() {
@@ -565,8 +581,14 @@ pub fn write_ply_mesh<W: Write>(w: &mut W, mesh: &TriMesh) -> Result<()> {
     if mesh.uvs.is_some() {
         h += "property float s\nproperty float t\n";
     }
+    if quality.is_some() {
+        h += "property float quality\n";
+    }
     h += &format!("element face {}\nproperty list uchar uint vertex_indices\nend_header\n", mesh.triangles.len());
-    let per_vertex = 12 + if mesh.normals.is_some() { 12 } else { 0 } + if mesh.uvs.is_some() { 8 } else { 0 };
+    let per_vertex = 12
+        + if mesh.normals.is_some() { 12 } else { 0 }
+        + if mesh.uvs.is_some() { 8 } else { 0 }
+        + if quality.is_some() { 4 } else { 0 };
     let mut buf = Vec::with_capacity(h.len() + mesh.vertices.len() * per_vertex + mesh.triangles.len() * 13);
     buf.extend_from_slice(h.as_bytes());
     for (i, v) in mesh.vertices.iter().enumerate() {
@@ -576,6 +598,9 @@ pub fn write_ply_mesh<W: Write>(w: &mut W, mesh: &TriMesh) -> Result<()> {
         }
         if let Some(uv) = &mesh.uvs {
             vals.extend(uv[i].to_array());
+        }
+        if let Some(q) = quality {
+            vals.push(q[i]);
         }
         for x in vals {
             buf.extend_from_slice(&x.to_le_bytes());

@@ -1,4 +1,244 @@
-//! Hair masks without ground truth.
+//! Hair masks without ground truth, as the paper makes them and without a hair prior:
+//!
+//! 1. **Hair region of the raw mesh** ([`region`]): per vertex, the probability of hair from
+//!    where it lies against the fitted head and from its colour in the views that see it
+//!    ([`render::seen`]: in front of the camera, facing it, not hidden by the raw mesh), against
+//!    colour models learned from the capture itself ([`colour`]).
+//! 2. **Its silhouette in each view** ([`render`]): one ray per pixel against the raw mesh and the
+//!    fitted head; a pixel takes the region's probability where its ray meets the raw mesh.
+//! 3. **Alpha** ([`trimap`], [`matting`]): a trimap of that silhouette, its band as wide as a few
+//!    millimetres are at the head's distance, and closed-form matting against the photo inside the
+//!    band, with the silhouette as a weak prior.
+//!
+//! [`quality`] scores masks against a synthetic capture's own; [`capture_masks`] writes them into
+//! a capture (`masks/`, `hair_region.ply`), keeping masks a user gave.
 
+pub mod capture_masks;
+pub mod colour;
 pub mod matting;
+pub mod quality;
+pub mod region;
+pub mod render;
 pub mod trimap;
+
+use glam::{Vec2, Vec3};
+use hairrecon_core::capture::Capture;
+use hairrecon_core::image_io::{read_rgb_f32, GrayImage32, RgbImage32};
+use hairrecon_core::{Bvh, FormatError, TriMesh};
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::progress::{Cancelled, Progress};
+use matting::{closed_form_matting, MattingError, MattingOptions};
+use region::{RegionOptions, RegionSummary};
+use render::{Surface, ViewHits};
+use trimap::Trimap;
+
+/// The parameters of the masks.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MaskOptions {
+    pub region: RegionOptions,
+    /// Weight of each pixel's own colour (its hair-against-rest log-likelihood ratio under the
+    /// region's colour models) added to the region's log-odds; 0 renders the region alone.
+    pub pixel_colour: f32,
+    /// Depth slack (mm) of a vertex's visibility test, beyond one and a half pixels' footprint.
+    pub visibility_mm: f32,
+    /// Half-width (mm, at the head's distance) of the trimap's unknown band around the silhouette.
+    pub band_mm: f32,
+    /// The unknown band is at least this many pixels wide on each side.
+    pub min_band_px: f32,
+    /// Closed-form matting inside the band; `false` keeps the silhouette's hard edge.
+    pub matting: bool,
+    /// Matting's regulariser (colours in [0, 1]).
+    pub matting_epsilon: f32,
+    /// Weight of the silhouette as a prior of alpha inside the band.
+    pub matting_prior: f32,
+}
+
+impl Default for MaskOptions {
+    fn default() -> Self {
+        Self {
+            region: RegionOptions::default(),
+            pixel_colour: 0.5,
+            visibility_mm: 3.0,
+            band_mm: 6.0,
+            min_band_px: 2.0,
+            matting: true,
+            matting_epsilon: MattingOptions::default().epsilon,
+            matting_prior: MattingOptions::default().prior_weight,
+        }
+    }
+}
+
+/// Why masks could not be made.
+#[derive(Debug, Error)]
+pub enum MaskError {
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error(
+        "{dir}: the capture has no head mesh; masks need the fitted head to tell skin from hair. Run `hairrecon \
+         fit-head {dir} --write` first (or give head_mesh and scalp_mesh in capture.json)"
+    )]
+    NoHead { dir: String },
+    #[error("view {view}: the image {path} is {found} but the view says {expected}")]
+    ImageSize { view: String, path: String, found: String, expected: String },
+    #[error("view {view}: matting failed: {source}")]
+    Matting { view: String, source: MattingError },
+}
+
+/// Masks of every view and the region they came from.
+#[derive(Debug, Clone)]
+pub struct MaskSet {
+    /// The raw mesh as read (in the capture's canonical frame).
+    pub raw: TriMesh,
+    /// Hair probability of each raw-mesh vertex.
+    pub region: Vec<f32>,
+    /// Alpha of each view, in the capture's order.
+    pub alphas: Vec<GrayImage32>,
+    /// The silhouettes before matting (the region's probability per pixel).
+    pub silhouettes: Vec<GrayImage32>,
+    pub summary: RegionSummary,
+}
+
+/// Makes masks for every view of `capture` (in the canonical frame, with a head and a scalp).
+pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress) -> Result<MaskSet, MaskError> {
+    const STAGE: &str = "masks";
+    let dir = capture.dir.display().to_string();
+    let (Some(head_path), Some(scalp_path)) = (&capture.head_mesh, &capture.scalp_mesh) else {
+        return Err(MaskError::NoHead { dir });
+    };
+    progress.update(STAGE, 0.0, "reading the meshes");
+    let raw = capture.read_mesh(&capture.raw_mesh)?;
+    let head = Bvh::new(capture.read_mesh(head_path)?);
+    let scalp = Bvh::new(capture.read_mesh(scalp_path)?);
+    let normals = raw.compute_vertex_normals();
+    let raw_bvh = Bvh::new(raw.clone());
+    progress.check()?;
+
+    let n_views = capture.views.len();
+    let mut images = Vec::with_capacity(n_views);
+    let mut hits = Vec::with_capacity(n_views);
+    for (k, view) in capture.views.iter().enumerate() {
+        progress.update(STAGE, 0.4 * k as f32 / n_views as f32, &format!("view {}: what each pixel sees", view.name));
+        let image = read_rgb_f32(&view.image)?;
+        let (w, h) = (view.camera.width(), view.camera.height());
+        if (image.width, image.height) != (w, h) {
+            return Err(MaskError::ImageSize {
+                view: view.name.clone(),
+                path: view.image.display().to_string(),
+                found: format!("{}x{}", image.width, image.height),
+                expected: format!("{w}x{h}"),
+            });
+        }
+        images.push(image);
+        hits.push(ViewHits::cast(&view.camera, &raw_bvh, Some(&head)));
+        progress.check()?;
+    }
+
+    progress.update(STAGE, 0.4, "the raw mesh's colours");
+    let tol = opts.visibility_mm * 1e-3;
+    let colours: Vec<Option<Vec3>> = raw
+        .vertices
+        .par_iter()
+        .zip(normals.par_iter())
+        .map(|(&p, &n)| {
+            let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+            for (k, view) in capture.views.iter().enumerate() {
+                if let Some((pixel, facing)) = render::seen(&view.camera, &hits[k], p, n, tol) {
+                    sum += facing * colour::srgb_to_lab(bilinear(&images[k], pixel));
+                    weight += facing;
+                }
+            }
+            (weight > 0.0).then(|| sum / weight)
+        })
+        .collect();
+    progress.check()?;
+
+    progress.update(STAGE, 0.5, "the hair region");
+    let prior = region::geometry_prior(&raw, &head, &scalp, &opts.region);
+    let neighbours = region::vertex_neighbours(&raw);
+    let (prob, models, summary) = region::hair_probability(&prior, &colours, &neighbours, &opts.region);
+    progress.check()?;
+
+    let matting_opts =
+        MattingOptions { epsilon: opts.matting_epsilon, prior_weight: opts.matting_prior, ..MattingOptions::default() };
+    let centre = raw_bvh.mesh().bbox();
+    let centre = (centre.0 + centre.1) * 0.5;
+    let mut alphas = Vec::with_capacity(n_views);
+    let mut silhouettes = Vec::with_capacity(n_views);
+    for (k, view) in capture.views.iter().enumerate() {
+        progress.update(STAGE, 0.55 + 0.45 * k as f32 / n_views as f32, &format!("view {}: alpha", view.name));
+        let silhouette = silhouette(&hits[k], &raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
+        let alpha = if opts.matting {
+            let depth = view.camera.project(centre).map_or(1.0, |p| p.depth);
+            let fx = view.camera.k().col(0).x;
+            let band = (opts.band_mm * 1e-3 * fx / depth).max(opts.min_band_px);
+            let trimap = Trimap::from_probability(&silhouette.data, silhouette.width, silhouette.height, band);
+            let data = closed_form_matting(&images[k], &trimap, Some(&silhouette.data), &matting_opts)
+                .map_err(|source| MaskError::Matting { view: view.name.clone(), source })?;
+            GrayImage32 { width: silhouette.width, height: silhouette.height, data }
+        } else {
+            let data = silhouette.data.iter().map(|&p| if p >= 0.5 { 1.0 } else { 0.0 }).collect();
+            GrayImage32 { width: silhouette.width, height: silhouette.height, data }
+        };
+        alphas.push(alpha);
+        silhouettes.push(silhouette);
+        progress.check()?;
+    }
+    progress.update(STAGE, 1.0, "done");
+    Ok(MaskSet { raw, region: prob, alphas, silhouettes, summary })
+}
+
+/// The region's probability where each pixel's ray meets the raw mesh (0 where it meets the head
+/// or nothing).
+fn silhouette(
+    hits: &ViewHits,
+    raw: &TriMesh,
+    prob: &[f32],
+    image: &RgbImage32,
+    models: Option<&region::ColourModels>,
+    colour_weight: f32,
+) -> GrayImage32 {
+    let data = hits
+        .hits
+        .par_iter()
+        .enumerate()
+        .map(|(i, h)| match h.surface {
+            Surface::Raw => {
+                let t = raw.triangles[h.triangle as usize];
+                let w0 = 1.0 - h.u - h.v;
+                let p = w0 * prob[t[0] as usize] + h.u * prob[t[1] as usize] + h.v * prob[t[2] as usize];
+                match models {
+                    Some(m) if colour_weight > 0.0 => {
+                        let c = &image.data[3 * i..3 * i + 3];
+                        let l = m.log_ratio(colour::srgb_to_lab([c[0], c[1], c[2]]));
+                        let p = p.clamp(1e-4, 1.0 - 1e-4);
+                        1.0 / (1.0 + (-((p / (1.0 - p)).ln() + colour_weight * l)).exp())
+                    }
+                    _ => p,
+                }
+            }
+            _ => 0.0,
+        })
+        .collect();
+    GrayImage32 { width: hits.width, height: hits.height, data }
+}
+
+/// The image's colour at a sub-pixel position (pixel centres at integers), clamped at the borders.
+fn bilinear(img: &RgbImage32, p: Vec2) -> [f32; 3] {
+    let (w, h) = (img.width as i64, img.height as i64);
+    let x0 = p.x.floor();
+    let y0 = p.y.floor();
+    let (fx, fy) = (p.x - x0, p.y - y0);
+    let at = |x: i64, y: i64| img.get(x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let (a, b, c, d) = (at(x0, y0), at(x0 + 1, y0), at(x0, y0 + 1), at(x0 + 1, y0 + 1));
+    let mut out = [0.0; 3];
+    for i in 0..3 {
+        out[i] = (a[i] * (1.0 - fx) + b[i] * fx) * (1.0 - fy) + (c[i] * (1.0 - fx) + d[i] * fx) * fy;
+    }
+    out
+}

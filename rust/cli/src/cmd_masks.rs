@@ -1,0 +1,165 @@
+//! `hairrecon masks`: hair masks of every view of a capture, without ground truth
+//! (`hairrecon_recon::masks`): the hair region of the raw mesh, its silhouette in each view, and
+//! matting against the photo. The capture needs a head and a scalp (`hairrecon fit-head --write`
+//! makes them). Prints a JSON report on stdout.
+//!
+//! `--write` puts the masks into the capture for the views that have none (a user's own masks are
+//! kept) with `hair_region.ply` and `masks.json`; `--out DIR` writes them into DIR instead, for a
+//! look. `--score` compares them with the capture's own masks (a synthetic capture's ground
+//! truth); `--gt-masks DIR` with `DIR/<view>.png`, box-averaged to the view's size (a wild
+//! capture's `gt/masks`, at the photos' size).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use hairrecon_core::capture::{Capture, CaptureSpec};
+use hairrecon_core::image_io::read_gray_f32;
+use hairrecon_recon::masks::capture_masks::{write_folder, write_into_capture};
+use hairrecon_recon::masks::quality::{downsample, score, MaskScore};
+use hairrecon_recon::masks::{make_masks, MaskError, MaskOptions, MaskSet};
+use serde_json::json;
+
+use crate::progress::Bars;
+use crate::CmdResult;
+
+#[derive(Debug, clap::Args)]
+pub struct MasksArgs {
+    /// Capture folder (or its capture.json), with a head and a scalp.
+    pub capture: PathBuf,
+    /// Write the masks into the capture (views without a mask) and name them in capture.json.
+    #[arg(long, conflicts_with = "out")]
+    pub write: bool,
+    /// Write the masks into this folder (masks/<view>.png, hair_region.ply, masks.json).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Score the masks against the capture's own (a synthetic capture's ground truth).
+    #[arg(long, conflicts_with = "gt_masks")]
+    pub score: bool,
+    /// Score the masks against DIR/<view>.png (any whole multiple of the view's size).
+    #[arg(long)]
+    pub gt_masks: Option<PathBuf>,
+    /// Keep the silhouette's hard edge (no matting).
+    #[arg(long)]
+    pub no_matting: bool,
+    /// Half-width of the trimap's unknown band, in millimetres at the head's distance.
+    #[arg(long, default_value_t = MaskOptions::default().band_mm)]
+    pub band_mm: f32,
+    /// Weight of each pixel's own colour against the hair region's probability.
+    #[arg(long, default_value_t = MaskOptions::default().pixel_colour)]
+    pub pixel_colour: f32,
+    /// Averaging passes of the hair probability over the raw mesh.
+    #[arg(long, default_value_t = MaskOptions::default().region.smoothing)]
+    pub smoothing: usize,
+}
+
+pub fn run(args: MasksArgs) -> CmdResult {
+    let t0 = Instant::now();
+    let json_path = CaptureSpec::json_path(&args.capture);
+    let capture = Capture::load(&json_path)?;
+    let spec = read_spec(&json_path)?;
+    let given: Vec<Option<PathBuf>> = capture.views.iter().map(|v| v.mask.clone()).collect();
+    let working = capture.in_canonical_frame()?.ok_or_else(|| {
+        format!(
+            "{}: the capture is in an imported frame with no to_canonical; run `hairrecon fit-head {} --write` first",
+            json_path.display(),
+            args.capture.display()
+        )
+    })?;
+    let mut opts = MaskOptions {
+        matting: !args.no_matting,
+        band_mm: args.band_mm,
+        pixel_colour: args.pixel_colour,
+        ..MaskOptions::default()
+    };
+    opts.region.smoothing = args.smoothing;
+    let bars = Bars::new();
+    let set = make_masks(&working, &opts, &bars);
+    bars.finish();
+    if matches!(set, Err(MaskError::Cancelled(_))) && bars.interrupt.requested() {
+        bars.interrupt.exit("no masks were written");
+    }
+    let set = set?;
+    let names: Vec<String> = capture.views.iter().map(|v| v.name.clone()).collect();
+    let scores = if args.score {
+        Some(score_all(&set, &names, |k| given[k].clone())?)
+    } else if let Some(dir) = &args.gt_masks {
+        Some(score_all(&set, &names, |k| Some(dir.join(format!("{}.png", names[k]))))?)
+    } else {
+        None
+    };
+    let report = report(&set, &names, scores.as_deref(), &opts, t0.elapsed().as_secs_f64());
+    let text = serde_json::to_string_pretty(&report)?;
+    if args.write {
+        write_into_capture(&json_path, &spec, &set, &text)?;
+    } else if let Some(out) = &args.out {
+        write_folder(out, &names, &set, &capture.raw_mesh, &text)?;
+    }
+    println!("{text}");
+    Ok(())
+}
+
+fn read_spec(json_path: &Path) -> Result<CaptureSpec, Box<dyn std::error::Error + Send + Sync>> {
+    let text = std::fs::read_to_string(json_path).map_err(|e| format!("cannot read {}: {e}", json_path.display()))?;
+    Ok(CaptureSpec::from_json(serde_json::from_str(&text)?, json_path)?)
+}
+
+type Scores = Vec<(String, MaskScore)>;
+
+fn score_all(
+    set: &MaskSet,
+    names: &[String],
+    gt_of: impl Fn(usize) -> Option<PathBuf>,
+) -> Result<Scores, Box<dyn std::error::Error + Send + Sync>> {
+    let mut out = Vec::new();
+    for (k, alpha) in set.alphas.iter().enumerate() {
+        let Some(path) = gt_of(k) else {
+            return Err(format!("view {}: the capture has no mask to score against", names[k]).into());
+        };
+        let gt = read_gray_f32(&path)?;
+        let gt = downsample(&gt, alpha.width, alpha.height).ok_or_else(|| {
+            format!(
+                "view {}: the mask {} is {}x{}, not a whole multiple of the view's {}x{}",
+                names[k],
+                path.display(),
+                gt.width,
+                gt.height,
+                alpha.width,
+                alpha.height
+            )
+        })?;
+        out.push((names[k].clone(), score(alpha, &gt)));
+    }
+    Ok(out)
+}
+
+fn report(
+    set: &MaskSet,
+    names: &[String],
+    scores: Option<&[(String, MaskScore)]>,
+    opts: &MaskOptions,
+    seconds: f64,
+) -> serde_json::Value {
+    let coverage: Vec<f64> =
+        set.alphas.iter().map(|a| a.data.iter().map(|&x| x as f64).sum::<f64>() / a.data.len().max(1) as f64).collect();
+    let mut r = json!({
+        "views": names.len(),
+        "region": set.summary,
+        "mean_coverage": coverage.iter().sum::<f64>() / coverage.len().max(1) as f64,
+        "options": opts,
+        "seconds": (seconds * 10.0).round() / 10.0,
+    });
+    if let Some(scores) = scores {
+        let n = scores.len().max(1) as f64;
+        let mean = |f: fn(&MaskScore) -> f32| scores.iter().map(|(_, s)| f(s) as f64).sum::<f64>() / n;
+        r["score"] = json!({
+            "mean_iou": mean(|s| s.iou),
+            "min_iou": scores.iter().map(|(_, s)| s.iou).fold(1.0f32, f32::min),
+            "mean_alpha_error": mean(|s| s.alpha_error),
+            "mean_off_hair": mean(|s| s.off_hair),
+            "max_off_hair": scores.iter().map(|(_, s)| s.off_hair).fold(0.0f32, f32::max),
+            "per_view": scores.iter().map(|(v, s)| json!({"view": v, "iou": s.iou, "alpha_error": s.alpha_error,
+                "off_hair": s.off_hair, "area": s.area, "gt_area": s.gt_area})).collect::<Vec<_>>(),
+        });
+    }
+    r
+}

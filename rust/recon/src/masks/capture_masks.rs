@@ -1,0 +1,103 @@
+//! Masks written where they are used: into the capture (`masks/<view>.png` for the views without
+//! a mask, `hair_region.ply`, `masks.json`, and the masks named in capture.json), or into a folder
+//! of their own for a look or a score.
+
+use std::path::{Path, PathBuf};
+
+use hairrecon_core::capture::{CaptureError, CaptureSpec};
+use hairrecon_core::formats::{read_mesh, write_mesh_with_quality};
+use hairrecon_core::image_io::write_png16_gray;
+use hairrecon_core::FormatError;
+use thiserror::Error;
+
+use super::MaskSet;
+
+/// The masks' folder, inside a capture or an output folder.
+pub const MASKS_DIR: &str = "masks";
+/// The raw mesh with each vertex's hair probability as its `quality`.
+pub const HAIR_REGION: &str = "hair_region.ply";
+/// The masks' report (what `hairrecon masks` prints).
+pub const MASKS_JSON: &str = "masks.json";
+
+/// Why masks could not be written.
+#[derive(Debug, Error)]
+pub enum WriteMasksError {
+    #[error(transparent)]
+    Capture(#[from] CaptureError),
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("cannot create {path}: {source}")]
+    Dir { path: PathBuf, source: std::io::Error },
+}
+
+/// Writes the masks of every view into `out/masks/<view>.png` (16-bit), the hair region into
+/// `out/hair_region.ply` (the raw mesh as its file has it, `raw_file`, with the probability as
+/// vertex quality) and `report` into `out/masks.json`. Returns the files written.
+pub fn write_folder(
+    out: &Path,
+    names: &[String],
+    set: &MaskSet,
+    raw_file: &Path,
+    report: &str,
+) -> Result<Vec<PathBuf>, WriteMasksError> {
+    let dir = out.join(MASKS_DIR);
+    std::fs::create_dir_all(&dir).map_err(|source| WriteMasksError::Dir { path: dir.clone(), source })?;
+    let mut written = Vec::new();
+    for (name, alpha) in names.iter().zip(&set.alphas) {
+        let path = dir.join(format!("{name}.png"));
+        write_png16_gray(&path, alpha)?;
+        written.push(path);
+    }
+    written.push(write_region(out, set, raw_file)?);
+    let path = out.join(MASKS_JSON);
+    write_text(&path, report)?;
+    written.push(path);
+    Ok(written)
+}
+
+/// Writes the masks into the capture `json_path`: `masks/<view>.png` for every view that has no
+/// mask in `spec` (a user's own masks are kept), `hair_region.ply`, `masks.json`, and
+/// capture.json naming the new masks. Returns the files written.
+pub fn write_into_capture(
+    json_path: &Path,
+    spec: &CaptureSpec,
+    set: &MaskSet,
+    report: &str,
+) -> Result<Vec<PathBuf>, WriteMasksError> {
+    let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let masks = dir.join(MASKS_DIR);
+    std::fs::create_dir_all(&masks).map_err(|source| WriteMasksError::Dir { path: masks.clone(), source })?;
+    let mut spec = spec.clone();
+    let mut written = Vec::new();
+    for (view, alpha) in spec.views.iter_mut().zip(&set.alphas) {
+        if view.mask.is_some() {
+            continue;
+        }
+        let rel = PathBuf::from(MASKS_DIR).join(format!("{}.png", view.name));
+        write_png16_gray(dir.join(&rel), alpha)?;
+        written.push(dir.join(&rel));
+        view.mask = Some(rel);
+    }
+    written.push(write_region(&dir, set, &dir.join(&spec.raw_mesh))?);
+    let path = dir.join(MASKS_JSON);
+    write_text(&path, report)?;
+    written.push(path);
+    written.push(spec.write(json_path)?);
+    Ok(written)
+}
+
+fn write_region(dir: &Path, set: &MaskSet, raw_file: &Path) -> Result<PathBuf, WriteMasksError> {
+    // The file's own vertices (its frame and units), in the same order as the canonical copy's.
+    let raw = read_mesh(raw_file)?;
+    let path = dir.join(HAIR_REGION);
+    write_mesh_with_quality(&path, &raw, &set.region)?;
+    Ok(path)
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), WriteMasksError> {
+    hairrecon_core::formats::atomic_write(path, |w| {
+        use std::io::Write;
+        Ok(writeln!(w, "{text}")?)
+    })?;
+    Ok(())
+}

@@ -1,0 +1,119 @@
+//! Masks against ground truth (a synthetic capture's renderer masks): IoU of the thresholded
+//! masks, mean absolute alpha error, and the share of the mask that lies clearly off the hair
+//! (on the backdrop, the clothes or the face).
+
+use hairrecon_core::image_io::GrayImage32;
+
+use super::trimap::distance_to;
+
+/// A mask pixel farther than this (pixels) from any ground-truth hair counts as a false positive.
+pub const OFF_HAIR_PX: f32 = 2.0;
+
+/// One view's mask against its ground truth.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct MaskScore {
+    /// |A ∩ G| / |A ∪ G| of `alpha ≥ 0.5` and `gt ≥ 0.5`.
+    pub iou: f32,
+    /// Mean |alpha − gt| over the pixels where either is above zero.
+    pub alpha_error: f32,
+    /// Share of the mask's pixels (`alpha ≥ 0.5`) farther than [`OFF_HAIR_PX`] from every pixel
+    /// of ground-truth coverage above zero.
+    pub off_hair: f32,
+    /// Pixels of `alpha ≥ 0.5` and of `gt ≥ 0.5`.
+    pub area: usize,
+    pub gt_area: usize,
+}
+
+/// Scores `alpha` against `gt` (the same size; the caller resamples).
+pub fn score(alpha: &GrayImage32, gt: &GrayImage32) -> MaskScore {
+    assert_eq!((alpha.width, alpha.height), (gt.width, gt.height), "the caller resamples the ground truth");
+    let (mut inter, mut union, mut area, mut gt_area) = (0usize, 0usize, 0usize, 0usize);
+    let (mut err, mut err_n) = (0.0f64, 0usize);
+    for (&a, &g) in alpha.data.iter().zip(&gt.data) {
+        let (ai, gi) = (a >= 0.5, g >= 0.5);
+        inter += (ai && gi) as usize;
+        union += (ai || gi) as usize;
+        area += ai as usize;
+        gt_area += gi as usize;
+        if a > 0.0 || g > 0.0 {
+            err += (a - g).abs() as f64;
+            err_n += 1;
+        }
+    }
+    let hair: Vec<bool> = gt.data.iter().map(|&g| g > 0.0).collect();
+    let dist = distance_to(&hair, gt.width, gt.height);
+    let off = alpha.data.iter().zip(&dist).filter(|(&a, &d)| a >= 0.5 && d > OFF_HAIR_PX).count();
+    MaskScore {
+        iou: if union == 0 { 1.0 } else { inter as f32 / union as f32 },
+        alpha_error: if err_n == 0 { 0.0 } else { (err / err_n as f64) as f32 },
+        off_hair: if area == 0 { 0.0 } else { off as f32 / area as f32 },
+        area,
+        gt_area,
+    }
+}
+
+/// Box-averages `img` down by a whole factor to `width` × `height` (the ground truth of a wild
+/// capture is at the photos' size, an integer multiple of the working size). `None` when the
+/// sizes are not a whole multiple.
+pub fn downsample(img: &GrayImage32, width: u32, height: u32) -> Option<GrayImage32> {
+    if width == 0 || height == 0 || img.width % width != 0 || img.height % height != 0 {
+        return None;
+    }
+    let (fx, fy) = (img.width / width, img.height / height);
+    if fx != fy {
+        return None;
+    }
+    let f = fx as usize;
+    let mut data = vec![0.0f32; (width * height) as usize];
+    for y in 0..height as usize {
+        for x in 0..width as usize {
+            let mut s = 0.0;
+            for dy in 0..f {
+                let row = (y * f + dy) * img.width as usize;
+                s += img.data[row + x * f..row + x * f + f].iter().sum::<f32>();
+            }
+            data[y * width as usize + x] = s / (f * f) as f32;
+        }
+    }
+    Some(GrayImage32 { width, height, data })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn img(w: u32, h: u32, f: impl Fn(u32, u32) -> f32) -> GrayImage32 {
+        let data = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect();
+        GrayImage32 { width: w, height: h, data }
+    }
+
+    #[test]
+    fn a_mask_shifted_by_two_columns_and_a_far_blob_score_as_counted_by_hand() {
+        // Ground truth: a 10 × 10 square at (10..20, 10..20). Mask: the same square shifted right
+        // by 2 columns, plus a 3 × 3 blob far away at (30..33, 30..33).
+        let gt = img(40, 40, |x, y| ((10..20).contains(&x) && (10..20).contains(&y)) as u8 as f32);
+        let a = img(40, 40, |x, y| {
+            (((12..22).contains(&x) && (10..20).contains(&y)) || ((30..33).contains(&x) && (30..33).contains(&y))) as u8
+                as f32
+        });
+        let s = score(&a, &gt);
+        // Intersection 8 × 10 = 80; union 100 + 109 − 80 = 129.
+        assert!((s.iou - 80.0 / 129.0).abs() < 1e-6, "{s:?}");
+        assert_eq!((s.area, s.gt_area), (109, 100));
+        // The shifted columns lie within 2 px of the square: only the blob is off the hair.
+        assert!((s.off_hair - 9.0 / 109.0).abs() < 1e-6, "{s:?}");
+        // |a − g| = 1 on the 20 + 9 pixels of the mask off the square and the 20 of the square
+        // off the mask, over the 129 pixels where either is nonzero.
+        assert!((s.alpha_error - 49.0 / 129.0).abs() < 1e-6, "{s:?}");
+    }
+
+    #[test]
+    fn downsampling_averages_blocks_and_refuses_other_sizes() {
+        let big = img(6, 9, |x, y| (x + 10 * y) as f32);
+        let small = downsample(&big, 2, 3).unwrap();
+        // Block (0, 0): x 0..3, y 0..3 → mean x 1, mean y 1 → 11.
+        assert_eq!(small.data[0], 11.0);
+        assert_eq!(small.data[5], 4.0 + 70.0);
+        assert!(downsample(&big, 4, 3).is_none());
+    }
+}
