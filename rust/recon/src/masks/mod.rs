@@ -62,7 +62,7 @@ impl Default for MaskOptions {
             region: RegionOptions::default(),
             pixel_colour: 0.5,
             visibility_mm: 3.0,
-            band_mm: 6.0,
+            band_mm: 12.0,
             min_band_px: 2.0,
             matting: true,
             matting_epsilon: MattingOptions::default().epsilon,

@@ -55,9 +55,9 @@ pub mod prior {
     /// On the skin of the face, ears or neck.
     pub const ON_SKIN: f32 = 0.1;
     /// Off the skin: hair over the face or neck, or a collar.
-    pub const OFF_SKIN: f32 = 0.4;
+    pub const OFF_SKIN: f32 = 0.5;
     /// Far from the head, or inside it.
-    pub const FAR: f32 = 0.4;
+    pub const FAR: f32 = 0.5;
 }
 
 /// The geometry prior of every vertex of `raw` (see the module doc). `head` and `scalp` are the
