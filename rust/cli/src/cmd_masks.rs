@@ -29,13 +29,13 @@ pub struct MasksArgs {
     /// Write the masks into the capture (views without a mask) and name them in capture.json.
     #[arg(long, conflicts_with = "out")]
     pub write: bool,
-    /// Write the masks into this folder (masks/<view>.png, hair_region.ply, masks.json).
+    /// Write the masks into this folder (masks/VIEW.png, hair_region.ply, masks.json).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Score the masks against the capture's own (a synthetic capture's ground truth).
     #[arg(long, conflicts_with = "gt_masks")]
     pub score: bool,
-    /// Score the masks against DIR/<view>.png (any whole multiple of the view's size).
+    /// Score the masks against DIR/VIEW.png (any whole multiple of the view's size).
     #[arg(long)]
     pub gt_masks: Option<PathBuf>,
     /// Keep the silhouette's hard edge (no matting).

@@ -225,7 +225,8 @@ pub struct ColourModels {
 }
 
 impl ColourModels {
-    /// log p(hair colour) − log p(other colour), clamped to ±8 (see [`colour_log_ratio`]).
+    /// log p(hair colour) − log p(the rest), the rest being the other model or a uniform density over
+    /// the gamut (whichever explains the colour), clamped to ±8.
     pub fn log_ratio(&self, lab: Vec3) -> f32 {
         colour_log_ratio(&self.hair, &self.other, lab)
     }
