@@ -242,3 +242,18 @@ fn bilinear(img: &RgbImage32, p: Vec2) -> [f32; 3] {
     }
     out
 }
+
+#[cfg(test)]
+pub(crate) mod tests {
+    /// A small linear congruential generator (Knuth's MMIX constants): reproducible test data
+    /// without the rand crate.
+    pub(crate) struct Lcg(pub(crate) u64);
+
+    impl Lcg {
+        /// The next value in [0, 1).
+        pub(crate) fn next_f32(&mut self) -> f32 {
+            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+}

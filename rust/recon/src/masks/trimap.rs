@@ -186,16 +186,7 @@ impl Envelope {
 mod tests {
     use super::*;
 
-    /// A small linear congruential generator (Numerical Recipes constants): reproducible test
-    /// data without the rand crate.
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next_f32(&mut self) -> f32 {
-            self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-    }
+    use crate::masks::tests::Lcg;
 
     fn brute_force(inside: &[bool], w: usize, h: usize) -> Vec<f32> {
         let mut out = vec![f32::INFINITY; w * h];
