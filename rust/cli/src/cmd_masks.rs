@@ -6,7 +6,7 @@
 //! `--write` puts the masks into the capture for the views that have none (a user's own masks are
 //! kept) with `hair_region.ply` and `masks.json`; `--out DIR` writes them into DIR instead, for a
 //! look. `--score` compares them with the capture's own masks (a synthetic capture's ground
-//! truth); `--gt-masks DIR` with `DIR/<view>.png`, box-averaged to the view's size (a wild
+//! truth); `--gt-masks DIR` with `DIR/<view>.png`, area-averaged to the view's size (a wild
 //! capture's `gt/masks`, at the photos' size).
 
 use std::path::{Path, PathBuf};
@@ -35,7 +35,7 @@ pub struct MasksArgs {
     /// Score the masks against the capture's own (a synthetic capture's ground truth).
     #[arg(long, conflicts_with = "gt_masks")]
     pub score: bool,
-    /// Score the masks against DIR/VIEW.png (any whole multiple of the view's size).
+    /// Score the masks against DIR/VIEW.png (at the view's size or larger: area-averaged to it).
     #[arg(long)]
     pub gt_masks: Option<PathBuf>,
     /// Keep the silhouette's hard edge (no matting).
@@ -118,7 +118,7 @@ fn score_all(
         let gt = read_gray_f32(&path)?;
         let gt = downsample(&gt, alpha.width, alpha.height).ok_or_else(|| {
             format!(
-                "view {}: the mask {} is {}x{}, not a whole multiple of the view's {}x{}",
+                "view {}: the mask {} is {}x{}, smaller than the view's {}x{}",
                 names[k],
                 path.display(),
                 gt.width,

@@ -52,27 +52,45 @@ pub fn score(alpha: &GrayImage32, gt: &GrayImage32) -> MaskScore {
     }
 }
 
-/// Box-averages `img` down by a whole factor to `width` × `height` (the ground truth of a wild
-/// capture is at the photos' size, an integer multiple of the working size). `None` when the
-/// sizes are not a whole multiple.
+/// Area-averages `img` down to `width` × `height` (the ground truth of a wild capture is at the
+/// photos' size; the importer scaled each axis by its own factor, width rounded). Each target
+/// pixel is the mean of the source area it covers, partial pixels weighted by their overlap.
+/// `None` when the target is empty or larger than the source.
 pub fn downsample(img: &GrayImage32, width: u32, height: u32) -> Option<GrayImage32> {
-    if width == 0 || height == 0 || img.width % width != 0 || img.height % height != 0 {
+    if width == 0 || height == 0 || width > img.width || height > img.height {
         return None;
     }
-    let (fx, fy) = (img.width / width, img.height / height);
-    if fx != fy {
-        return None;
-    }
-    let f = fx as usize;
+    // Per axis: for each target index, the (source index, weight) pairs it covers.
+    let spans = |src: u32, dst: u32| -> Vec<Vec<(usize, f32)>> {
+        let f = src as f64 / dst as f64;
+        (0..dst)
+            .map(|i| {
+                let (lo, hi) = (i as f64 * f, (i + 1) as f64 * f);
+                let mut v = Vec::new();
+                let mut j = lo.floor() as usize;
+                while (j as f64) < hi && j < src as usize {
+                    let w = (hi.min(j as f64 + 1.0) - lo.max(j as f64)) / f;
+                    if w > 0.0 {
+                        v.push((j, w as f32));
+                    }
+                    j += 1;
+                }
+                v
+            })
+            .collect()
+    };
+    let (xs, ys) = (spans(img.width, width), spans(img.height, height));
     let mut data = vec![0.0f32; (width * height) as usize];
-    for y in 0..height as usize {
-        for x in 0..width as usize {
+    for (y, row_spans) in ys.iter().enumerate() {
+        for (x, col_spans) in xs.iter().enumerate() {
             let mut s = 0.0;
-            for dy in 0..f {
-                let row = (y * f + dy) * img.width as usize;
-                s += img.data[row + x * f..row + x * f + f].iter().sum::<f32>();
+            for &(sy, wy) in row_spans {
+                let row = sy * img.width as usize;
+                for &(sx, wx) in col_spans {
+                    s += wy * wx * img.data[row + sx];
+                }
             }
-            data[y * width as usize + x] = s / (f * f) as f32;
+            data[y * width as usize + x] = s;
         }
     }
     Some(GrayImage32 { width, height, data })
@@ -108,12 +126,16 @@ mod tests {
     }
 
     #[test]
-    fn downsampling_averages_blocks_and_refuses_other_sizes() {
+    fn downsampling_averages_the_area_each_pixel_covers() {
         let big = img(6, 9, |x, y| (x + 10 * y) as f32);
         let small = downsample(&big, 2, 3).unwrap();
         // Block (0, 0): x 0..3, y 0..3 → mean x 1, mean y 1 → 11.
-        assert_eq!(small.data[0], 11.0);
-        assert_eq!(small.data[5], 4.0 + 70.0);
-        assert!(downsample(&big, 4, 3).is_none());
+        assert!((small.data[0] - 11.0).abs() < 1e-4);
+        assert!((small.data[5] - 74.0).abs() < 1e-4);
+        // 3 columns onto 2: the first takes column 0 and half of column 1 (weights 2/3, 1/3).
+        let row = img(3, 1, |x, _| [3.0, 6.0, 9.0][x as usize]);
+        let two = downsample(&row, 2, 1).unwrap();
+        assert!((two.data[0] - 4.0).abs() < 1e-5 && (two.data[1] - 8.0).abs() < 1e-5, "{:?}", two.data);
+        assert!(downsample(&big, 7, 3).is_none());
     }
 }
