@@ -80,6 +80,7 @@ pub fn reconstruct(
     crate::run_folder::claim(out_dir, &plan, &capture.dir)?;
     mkdir(out_dir)?;
     let mut report = Report::resumed(&capture.dir, out_dir, from);
+    report.warnings.extend(missing_masks_warning(capture));
     report.save(&out_dir.join("report.json"))?;
     ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
     // The report is written whatever happens: a cancelled or failed run lists the stages it finished.
@@ -107,6 +108,26 @@ pub fn reconstruct(
         loss_csv: file("loss.csv", last == Stage::Dr),
         report,
     })
+}
+
+/// A warning when views have no hair mask: every pixel of such a view counts as hair (DR's
+/// silhouette, the 3D points, the visual hull, the partings), which a photo's background is not.
+pub fn missing_masks_warning(capture: &Capture) -> Option<String> {
+    let without: Vec<&str> = capture.views.iter().filter(|v| v.mask.is_none()).map(|v| v.name.as_str()).collect();
+    if without.is_empty() {
+        return None;
+    }
+    let which = if without.len() == capture.views.len() {
+        "no view has a hair mask".to_string()
+    } else {
+        format!("{} of {} views have no hair mask (first: {})", without.len(), capture.views.len(), without[0])
+    };
+    Some(format!(
+        "{which}: every pixel of those views counts as hair; make masks from the raw mesh and the photos with \
+         `hairrecon masks {} --write` (after `hairrecon fit-head {} --write` if the capture has no head)",
+        capture.dir.display(),
+        capture.dir.display()
+    ))
 }
 
 /// The stages from `from` to `last`, recorded in `report`.

@@ -327,3 +327,23 @@ fn an_imported_capture_with_its_frame_runs_in_the_canonical_one_and_writes_in_it
         let _ = std::fs::remove_dir_all(&c.dir);
     }
 }
+
+#[test]
+fn views_without_masks_are_named_in_a_warning_of_the_report() {
+    let mut cap = capture("unmasked");
+    let plan = Plan { stop_after: Some(Stage::Orient2d), ..Plan::default() };
+    let masked = reconstruct(&cap, &cap.dir.join("masked"), &ReconstructConfig::default(), plan, &NoProgress).unwrap();
+    assert!(masked.report.warnings.is_empty(), "{:?}", masked.report.warnings);
+    let n = cap.views.len();
+    for v in cap.views.iter_mut().skip(1).step_by(2) {
+        v.mask = None;
+    }
+    let out_dir = cap.dir.join("unmasked");
+    let run = reconstruct(&cap, &out_dir, &ReconstructConfig::default(), plan, &NoProgress).unwrap();
+    let w = run.report.warnings.join("\n");
+    assert!(w.contains(&format!("{} of {n} views have no hair mask (first: {})", n / 2, cap.views[1].name)), "{w}");
+    assert!(w.contains("hairrecon masks") && w.contains("--write"), "{w}");
+    // The report on disk says the same.
+    assert_eq!(Report::load(&out_dir).unwrap().warnings, run.report.warnings);
+    let _ = std::fs::remove_dir_all(&cap.dir);
+}
