@@ -13,11 +13,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use hairrecon_core::capture::{Capture, CaptureSpec};
-use hairrecon_core::image_io::read_gray_f32;
-use hairrecon_recon::masks::capture_masks::{write_folder, write_into_capture};
-use hairrecon_recon::masks::quality::{downsample, score, MaskScore};
-use hairrecon_recon::masks::{make_masks, MaskError, MaskOptions, MaskSet};
-use serde_json::json;
+use hairrecon_recon::masks::capture_masks::{report, write_folder, write_into_capture};
+use hairrecon_recon::masks::quality::score_views;
+use hairrecon_recon::masks::{make_masks, MaskError, MaskOptions};
 
 use crate::progress::Bars;
 use crate::CmdResult;
@@ -81,9 +79,10 @@ pub fn run(args: MasksArgs) -> CmdResult {
     let set = set?;
     let names: Vec<String> = capture.views.iter().map(|v| v.name.clone()).collect();
     let scores = if args.score {
-        Some(score_all(&set, &names, |k| given[k].clone())?)
+        Some(score_views(&set.alphas, &names, &given)?)
     } else if let Some(dir) = &args.gt_masks {
-        Some(score_all(&set, &names, |k| Some(dir.join(format!("{}.png", names[k]))))?)
+        let paths: Vec<Option<PathBuf>> = names.iter().map(|n| Some(dir.join(format!("{n}.png")))).collect();
+        Some(score_views(&set.alphas, &names, &paths)?)
     } else {
         None
     };
@@ -101,65 +100,4 @@ pub fn run(args: MasksArgs) -> CmdResult {
 fn read_spec(json_path: &Path) -> Result<CaptureSpec, Box<dyn std::error::Error + Send + Sync>> {
     let text = std::fs::read_to_string(json_path).map_err(|e| format!("cannot read {}: {e}", json_path.display()))?;
     Ok(CaptureSpec::from_json(serde_json::from_str(&text)?, json_path)?)
-}
-
-type Scores = Vec<(String, MaskScore)>;
-
-fn score_all(
-    set: &MaskSet,
-    names: &[String],
-    gt_of: impl Fn(usize) -> Option<PathBuf>,
-) -> Result<Scores, Box<dyn std::error::Error + Send + Sync>> {
-    let mut out = Vec::new();
-    for (k, alpha) in set.alphas.iter().enumerate() {
-        let Some(path) = gt_of(k) else {
-            return Err(format!("view {}: the capture has no mask to score against", names[k]).into());
-        };
-        let gt = read_gray_f32(&path)?;
-        let gt = downsample(&gt, alpha.width, alpha.height).ok_or_else(|| {
-            format!(
-                "view {}: the mask {} is {}x{}, smaller than the view's {}x{}",
-                names[k],
-                path.display(),
-                gt.width,
-                gt.height,
-                alpha.width,
-                alpha.height
-            )
-        })?;
-        out.push((names[k].clone(), score(alpha, &gt)));
-    }
-    Ok(out)
-}
-
-fn report(
-    set: &MaskSet,
-    names: &[String],
-    scores: Option<&[(String, MaskScore)]>,
-    opts: &MaskOptions,
-    seconds: f64,
-) -> serde_json::Value {
-    let coverage: Vec<f64> =
-        set.alphas.iter().map(|a| a.data.iter().map(|&x| x as f64).sum::<f64>() / a.data.len().max(1) as f64).collect();
-    let mut r = json!({
-        "views": names.len(),
-        "region": set.summary,
-        "mean_coverage": coverage.iter().sum::<f64>() / coverage.len().max(1) as f64,
-        "options": opts,
-        "seconds": (seconds * 10.0).round() / 10.0,
-    });
-    if let Some(scores) = scores {
-        let n = scores.len().max(1) as f64;
-        let mean = |f: fn(&MaskScore) -> f32| scores.iter().map(|(_, s)| f(s) as f64).sum::<f64>() / n;
-        r["score"] = json!({
-            "mean_iou": mean(|s| s.iou),
-            "min_iou": scores.iter().map(|(_, s)| s.iou).fold(1.0f32, f32::min),
-            "mean_alpha_error": mean(|s| s.alpha_error),
-            "mean_off_hair": mean(|s| s.off_hair),
-            "max_off_hair": scores.iter().map(|(_, s)| s.off_hair).fold(0.0f32, f32::max),
-            "per_view": scores.iter().map(|(v, s)| json!({"view": v, "iou": s.iou, "alpha_error": s.alpha_error,
-                "off_hair": s.off_hair, "area": s.area, "gt_area": s.gt_area})).collect::<Vec<_>>(),
-        });
-    }
-    r
 }

@@ -33,6 +33,7 @@ mod head_fit;
 mod importer;
 mod io;
 mod job;
+mod masks;
 
 use arrays::Shape;
 use error::{capture_err, format_err, guard, input_err, to_py};
@@ -194,5 +195,6 @@ fn hairrecon(m: &Bound<'_, PyModule>) -> PyResult<()> {
     job::register(m)?;
     importer::register(m)?;
     head_fit::register(m)?;
+    masks::register(m)?;
     Ok(())
 }

@@ -10,7 +10,10 @@ use hairrecon_core::image_io::write_png16_gray;
 use hairrecon_core::FormatError;
 use thiserror::Error;
 
-use super::MaskSet;
+use serde_json::json;
+
+use super::quality::MaskScore;
+use super::{MaskOptions, MaskSet};
 
 /// The masks' folder, inside a capture or an output folder.
 pub const MASKS_DIR: &str = "masks";
@@ -100,4 +103,39 @@ fn write_text(path: &Path, text: &str) -> Result<(), WriteMasksError> {
         Ok(writeln!(w, "{text}")?)
     })?;
     Ok(())
+}
+
+/// The report of a masks run (what `hairrecon masks` prints and `masks.json` keeps): the views,
+/// the region's summary, the masks' mean coverage, the options, the time, and the scores when
+/// there are.
+pub fn report(
+    set: &MaskSet,
+    names: &[String],
+    scores: Option<&[(String, MaskScore)]>,
+    opts: &MaskOptions,
+    seconds: f64,
+) -> serde_json::Value {
+    let coverage: Vec<f64> =
+        set.alphas.iter().map(|a| a.data.iter().map(|&x| x as f64).sum::<f64>() / a.data.len().max(1) as f64).collect();
+    let mut r = json!({
+        "views": names.len(),
+        "region": set.summary,
+        "mean_coverage": coverage.iter().sum::<f64>() / coverage.len().max(1) as f64,
+        "options": opts,
+        "seconds": (seconds * 10.0).round() / 10.0,
+    });
+    if let Some(scores) = scores {
+        let n = scores.len().max(1) as f64;
+        let mean = |f: fn(&MaskScore) -> f32| scores.iter().map(|(_, s)| f(s) as f64).sum::<f64>() / n;
+        r["score"] = json!({
+            "mean_iou": mean(|s| s.iou),
+            "min_iou": scores.iter().map(|(_, s)| s.iou).fold(1.0f32, f32::min),
+            "mean_alpha_error": mean(|s| s.alpha_error),
+            "mean_off_hair": mean(|s| s.off_hair),
+            "max_off_hair": scores.iter().map(|(_, s)| s.off_hair).fold(0.0f32, f32::max),
+            "per_view": scores.iter().map(|(v, s)| json!({"view": v, "iou": s.iou, "alpha_error": s.alpha_error,
+                "off_hair": s.off_hair, "area": s.area, "gt_area": s.gt_area})).collect::<Vec<_>>(),
+        });
+    }
+    r
 }

@@ -2,7 +2,11 @@
 //! masks, mean absolute alpha error, and the share of the mask that lies clearly off the hair
 //! (on the backdrop, the clothes or the face).
 
-use hairrecon_core::image_io::GrayImage32;
+use std::path::PathBuf;
+
+use hairrecon_core::image_io::{read_gray_f32, GrayImage32};
+use hairrecon_core::FormatError;
+use thiserror::Error;
 
 use super::trimap::distance_to;
 
@@ -94,6 +98,41 @@ pub fn downsample(img: &GrayImage32, width: u32, height: u32) -> Option<GrayImag
         }
     }
     Some(GrayImage32 { width, height, data })
+}
+
+/// Why masks could not be scored.
+#[derive(Debug, Error)]
+pub enum ScoreError {
+    #[error("view {view}: the capture has no mask to score against")]
+    NoMask { view: String },
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("view {view}: the mask {path} is {found}, smaller than the view's {expected}")]
+    TooSmall { view: String, path: PathBuf, found: String, expected: String },
+}
+
+/// Scores each view's `alphas[k]` (named `names[k]`) against the mask file `gt[k]`, area-averaged
+/// to the view's size.
+pub fn score_views(
+    alphas: &[GrayImage32],
+    names: &[String],
+    gt: &[Option<PathBuf>],
+) -> Result<Vec<(String, MaskScore)>, ScoreError> {
+    let mut out = Vec::with_capacity(alphas.len());
+    for ((alpha, name), path) in alphas.iter().zip(names).zip(gt) {
+        let Some(path) = path else {
+            return Err(ScoreError::NoMask { view: name.clone() });
+        };
+        let truth = read_gray_f32(path)?;
+        let truth = downsample(&truth, alpha.width, alpha.height).ok_or_else(|| ScoreError::TooSmall {
+            view: name.clone(),
+            path: path.clone(),
+            found: format!("{}x{}", truth.width, truth.height),
+            expected: format!("{}x{}", alpha.width, alpha.height),
+        })?;
+        out.push((name.clone(), score(alpha, &truth)));
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -171,10 +171,23 @@ pub fn hair_probability(
     let mut posterior_logit = prior_logit.clone();
     for round in 0..opts.rounds {
         let seed = round as u64;
-        let (Some(hair), Some(other)) = (
-            Gmm::fit(&xs, &w_hair, opts.components, 8, 11 + seed),
-            Gmm::fit(&xs, &w_other, opts.components, 8, 23 + seed),
-        ) else {
+        let hair = Gmm::fit(&xs, &w_hair, opts.components, 8, 11 + seed);
+        let other = Gmm::fit(&xs, &w_other, opts.components, 8, 23 + seed);
+        if let (None, Some(other)) = (&hair, &other) {
+            // Nothing stands off the scalp (a bald or shaved head): no hair colour to learn. A
+            // colour the skin explains better than chance is skin.
+            if round == 0 {
+                posterior_logit = (0..n)
+                    .into_par_iter()
+                    .map(|i| match colours[i] {
+                        Some(c) => prior_logit[i] + ((LOG_UNIFORM - other.log_density(c)) as f32).clamp(-8.0, 8.0),
+                        None => prior_logit[i],
+                    })
+                    .collect();
+            }
+            break;
+        }
+        let (Some(hair), Some(other)) = (hair, other) else {
             break;
         };
         posterior_logit = (0..n)
@@ -283,6 +296,19 @@ mod tests {
         assert_eq!(s.coloured, n);
         assert_eq!(s.hair_vertices, p.iter().filter(|&&x| x >= 0.5).count());
         assert!(s.hair_vertices.abs_diff(n / 2) <= 3, "{}", s.hair_vertices);
+    }
+
+    #[test]
+    fn a_bald_head_has_no_hair_when_its_scalp_is_skin_coloured() {
+        // Skin on the face (prior ON_SKIN) and on the scalp (ON_SCALP), nothing off the scalp.
+        let n = 100;
+        let prior: Vec<f32> = (0..n).map(|i| if i < 50 { prior::ON_SKIN } else { prior::ON_SCALP }).collect();
+        let colours: Vec<Option<Vec3>> =
+            (0..n).map(|i| Some(Vec3::new(70.0 + (i % 7) as f32, 15.0 + (i % 3) as f32, 15.0))).collect();
+        let neighbours = (vec![0u32; n + 1], Vec::new());
+        let (p, models, _) = hair_probability(&prior, &colours, &neighbours, &RegionOptions::default());
+        assert!(models.is_none());
+        assert!(p.iter().all(|&x| x < 0.1), "{:?}", &p[50..60]);
     }
 
     #[test]
