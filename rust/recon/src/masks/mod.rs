@@ -92,14 +92,10 @@ pub enum MaskError {
 /// Masks of every view and the region they came from.
 #[derive(Debug, Clone)]
 pub struct MaskSet {
-    /// The raw mesh as read (in the capture's canonical frame).
-    pub raw: TriMesh,
     /// Hair probability of each raw-mesh vertex.
     pub region: Vec<f32>,
     /// Alpha of each view, in the capture's order.
     pub alphas: Vec<GrayImage32>,
-    /// The silhouettes before matting (the region's probability per pixel).
-    pub silhouettes: Vec<GrayImage32>,
     pub summary: RegionSummary,
 }
 
@@ -115,7 +111,8 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let head = Bvh::new(capture.read_mesh(head_path)?);
     let scalp = Bvh::new(capture.read_mesh(scalp_path)?);
     let normals = raw.compute_vertex_normals();
-    let raw_bvh = Bvh::new(raw.clone());
+    let raw_bvh = Bvh::new(raw);
+    let raw = raw_bvh.mesh();
     progress.check()?;
 
     let n_views = capture.views.len();
@@ -158,8 +155,8 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     progress.check()?;
 
     progress.update(STAGE, 0.5, "the hair region");
-    let prior = region::geometry_prior(&raw, &head, &scalp, &opts.region);
-    let neighbours = region::vertex_neighbours(&raw);
+    let prior = region::geometry_prior(raw, &head, &scalp, &opts.region);
+    let neighbours = region::vertex_neighbours(raw);
     let (prob, models, summary) = region::hair_probability(&prior, &colours, &neighbours, &opts.region);
     progress.check()?;
 
@@ -168,10 +165,9 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let centre = raw_bvh.mesh().bbox();
     let centre = (centre.0 + centre.1) * 0.5;
     let mut alphas = Vec::with_capacity(n_views);
-    let mut silhouettes = Vec::with_capacity(n_views);
     for (k, view) in capture.views.iter().enumerate() {
         progress.update(STAGE, 0.55 + 0.45 * k as f32 / n_views as f32, &format!("view {}: alpha", view.name));
-        let silhouette = silhouette(&hits[k], &raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
+        let silhouette = silhouette(&hits[k], raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
         let alpha = if opts.matting {
             let depth = view.camera.project(centre).map_or(1.0, |p| p.depth);
             let fx = view.camera.k().col(0).x;
@@ -185,11 +181,10 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
             GrayImage32 { width: silhouette.width, height: silhouette.height, data }
         };
         alphas.push(alpha);
-        silhouettes.push(silhouette);
         progress.check()?;
     }
     progress.update(STAGE, 1.0, "done");
-    Ok(MaskSet { raw, region: prob, alphas, silhouettes, summary })
+    Ok(MaskSet { region: prob, alphas, summary })
 }
 
 /// The region's probability where each pixel's ray meets the raw mesh (0 where it meets the head
