@@ -33,10 +33,11 @@ pub struct ReconstructArgs {
     #[arg(long)]
     overwrite: bool,
     /// Start from this stage, reloading what an earlier run saved in --out for the stages before
-    /// it: orient2d, orient3d, partings, direction, init or dr.
+    /// it: head, masks, orient2d, orient3d, partings, direction, init or dr.
     #[arg(long, value_name = "STAGE")]
     from: Option<String>,
-    /// Stop after this stage: orient2d, orient3d, partings, direction, init (before DR) or dr.
+    /// Stop after this stage: head, masks, orient2d, orient3d, partings, direction, init (before DR)
+    /// or dr.
     #[arg(long, value_name = "STAGE")]
     stop_after: Option<String>,
     /// Accept a capture.json whose paths are absolute or leave the capture folder with `..`
@@ -205,7 +206,7 @@ pub fn run(a: ReconstructArgs) -> CmdResult {
     }
     let cfg = config(&a)?;
     let plan = Plan {
-        from: a.from.as_deref().map(str::parse::<Stage>).transpose()?.unwrap_or(Stage::Orient2d),
+        from: a.from.as_deref().map(str::parse::<Stage>).transpose()?.unwrap_or(Stage::FIRST),
         stop_after: a.stop_after.as_deref().map(str::parse::<Stage>).transpose()?,
         overwrite: a.overwrite,
     };

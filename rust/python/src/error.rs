@@ -99,7 +99,9 @@ impl Class {
             | ReconError::NotCanonical { .. }
             | ReconError::Capture(_)
             | ReconError::Implausible { .. }
-            | ReconError::EmptyStage { .. } => Class::Capture,
+            | ReconError::EmptyStage { .. }
+            | ReconError::HeadFit(_)
+            | ReconError::Masks(_) => Class::Capture,
             ReconError::Config(_)
             | ReconError::EmptyPlan { .. }
             | ReconError::MissingStageOutput { .. }

@@ -72,7 +72,7 @@ fn options(a: Args<'_>) -> PyResult<(ReconstructConfig, Plan)> {
     }
     c.validate().map_err(input_err)?;
     let plan = Plan {
-        from: stage("from_stage", a.from_stage)?.unwrap_or(Stage::Orient2d),
+        from: stage("from_stage", a.from_stage)?.unwrap_or(Stage::FIRST),
         stop_after: stage("stop_after", a.stop_after)?,
         overwrite: a.overwrite,
     };

@@ -18,6 +18,7 @@ use crate::dr::DrOptions;
 use crate::grow::GrowParams;
 use crate::hull::HullParams;
 use crate::laplace::LaplaceParams;
+use crate::masks::MaskOptions;
 use crate::orient2d::GaborParams;
 use crate::parting::PartingParams;
 use crate::points3d::LineMvsParams;
@@ -31,6 +32,11 @@ pub const GIT_COMMIT: &str = env!("HAIRRECON_GIT_COMMIT");
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Stage {
+    /// The head fit ([`crate::head_fit`]): the frame, the head and the scalp, for a capture that
+    /// lacks them.
+    Head,
+    /// Hair masks ([`crate::masks`]) for the views that have none.
+    Masks,
     /// 2D orientation maps by a Gabor filter bank ([`crate::orient2d`]).
     Orient2d,
     /// Oriented 3D points by line MVS on the raw mesh ([`crate::points3d`]).
@@ -47,11 +53,24 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage in order.
-    pub const ALL: [Stage; 6] =
-        [Stage::Orient2d, Stage::Orient3d, Stage::Partings, Stage::Direction, Stage::Init, Stage::Dr];
+    pub const ALL: [Stage; 8] = [
+        Stage::Head,
+        Stage::Masks,
+        Stage::Orient2d,
+        Stage::Orient3d,
+        Stage::Partings,
+        Stage::Direction,
+        Stage::Init,
+        Stage::Dr,
+    ];
+
+    /// The first stage.
+    pub const FIRST: Stage = Stage::Head;
 
     pub fn name(self) -> &'static str {
         match self {
+            Stage::Head => "head",
+            Stage::Masks => "masks",
             Stage::Orient2d => "orient2d",
             Stage::Orient3d => "orient3d",
             Stage::Partings => "partings",
@@ -76,13 +95,13 @@ pub struct Plan {
 
 impl Default for Plan {
     fn default() -> Self {
-        Self { from: Stage::Orient2d, stop_after: None, overwrite: false }
+        Self { from: Stage::FIRST, stop_after: None, overwrite: false }
     }
 }
 
 /// A stage name that is not one of [`Stage::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
-#[error("stage {0:?} is unknown; use one of orient2d, orient3d, partings, direction, init, dr")]
+#[error("stage {0:?} is unknown; use one of head, masks, orient2d, orient3d, partings, direction, init, dr")]
 pub struct UnknownStage(pub String);
 
 impl FromStr for Stage {
@@ -139,6 +158,29 @@ pub struct ReconstructConfig {
     /// Curls ([`crate::curl`]): `Auto` lets the images decide ([`crate::curl_choice`]).
     pub curl: CurlMode,
     pub curl_options: CurlOptions,
+    /// The head fit of a capture without a scalp, a head or a frame (stage `head`).
+    pub head_fit: HeadFitParams,
+    /// Make hair masks for the views that have none (stage `masks`); false runs such views with
+    /// every pixel counted as hair, as a warning says.
+    pub make_masks: bool,
+    pub masks: MaskOptions,
+}
+
+/// The head fit's part of the configuration ([`crate::head_fit::FitOptions`] has the rest, at
+/// its defaults).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HeadFitParams {
+    /// Use the cameras (they surround the head and stand upright) in the coarse search.
+    pub use_cameras: bool,
+    /// Fail when more than this fraction of the template's skin lies outside the raw mesh.
+    pub max_exposed_fraction: f64,
+}
+
+impl Default for HeadFitParams {
+    fn default() -> Self {
+        Self { use_cameras: true, max_exposed_fraction: crate::head_fit::FitOptions::default().max_exposed_fraction }
+    }
 }
 
 impl Default for ReconstructConfig {
@@ -165,6 +207,9 @@ impl Default for ReconstructConfig {
             parting: PartingParams::default(),
             curl: CurlMode::Auto,
             curl_options: CurlOptions::default(),
+            head_fit: HeadFitParams::default(),
+            make_masks: true,
+            masks: MaskOptions::default(),
         }
     }
 }

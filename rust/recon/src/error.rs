@@ -78,6 +78,12 @@ pub enum ReconError {
     /// A stage made nothing to work on, so the later stages cannot run.
     #[error("the {stage} stage found {what}: {cause}")]
     EmptyStage { stage: Stage, what: &'static str, cause: &'static str },
+    /// The head fit (stage `head`) failed.
+    #[error("the head fit: {0}")]
+    HeadFit(String),
+    /// The masks (stage `masks`) could not be made.
+    #[error("the hair masks: {0}")]
+    Masks(String),
     /// The capture has no scalp mesh.
     #[error("the capture {dir} has no scalp mesh; add \"scalp_mesh\" to its capture.json")]
     NoScalp { dir: PathBuf },

@@ -34,7 +34,7 @@ pub fn claim(out_dir: &Path, plan: &Plan, capture_dir: &Path) -> Result<(), Reco
     for e in entries {
         names.push(e.map_err(io)?.file_name().to_string_lossy().into_owned());
     }
-    for dir in [out_dir.to_path_buf(), out_dir.join("orient2d")] {
+    for dir in [out_dir.to_path_buf(), out_dir.join("orient2d"), out_dir.join("masks")] {
         remove_temporaries(&dir)?;
     }
     names.retain(|n| !is_temporary(n));
@@ -51,7 +51,7 @@ pub fn claim(out_dir: &Path, plan: &Plan, capture_dir: &Path) -> Result<(), Reco
         return Err(ReconError::ForeignOutDir { path: out_dir.into(), found });
     }
     let from = plan.from;
-    if let Some(old) = old.as_ref().filter(|_| from > Stage::Orient2d) {
+    if let Some(old) = old.as_ref().filter(|_| from > Stage::FIRST) {
         // Compared as the same folder (a path given another way is fine); a capture since moved
         // or removed cannot be compared, and is let through.
         let (theirs, ours) = (std::fs::canonicalize(&old.capture), std::fs::canonicalize(capture_dir));
@@ -69,11 +69,13 @@ pub fn claim(out_dir: &Path, plan: &Plan, capture_dir: &Path) -> Result<(), Reco
             remove(&out_dir.join(f))?;
         }
     }
-    if from == Stage::Orient2d {
-        // The maps of views a report does not list (a report that lists no files).
-        for name in list(&out_dir.join("orient2d"))? {
-            if name.ends_with(".exr") || name.ends_with(".png") {
-                remove(&out_dir.join("orient2d").join(name))?;
+    // The per-view files of views a report does not list (a report that lists no files).
+    for (stage, dir) in [(Stage::Masks, "masks"), (Stage::Orient2d, "orient2d")] {
+        if from <= stage {
+            for name in list(&out_dir.join(dir))? {
+                if name.ends_with(".exr") || name.ends_with(".png") {
+                    remove(&out_dir.join(dir).join(name))?;
+                }
             }
         }
     }

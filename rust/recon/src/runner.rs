@@ -26,7 +26,9 @@ use crate::eval::Evaluator;
 use crate::progress::Progress;
 use crate::report::{Report, RunStatus};
 use crate::stages::direction::DirectionOut;
+use crate::stages::head::HeadOut;
 use crate::stages::init::InitOut;
+use crate::stages::masks::MasksOut;
 use crate::stages::orient2d::Orient2dOut;
 use crate::stages::orient3d::Orient3dOut;
 use crate::stages::partings::PartingsOut;
@@ -57,41 +59,29 @@ pub fn reconstruct(
     progress: &dyn Progress,
 ) -> Result<ReconstructOutput, ReconError> {
     cfg.validate()?;
-    // An imported capture runs in the canonical frame that head fitting found; its results go
-    // back to its own frame (`Context::write_result`).
-    let Some(working) = capture.in_canonical_frame().map_err(ReconError::Capture)? else {
-        return Err(ReconError::NotCanonical {
-            dir: capture.dir.clone(),
-            frame: capture.frame.name().into(),
-            units: capture.units.name().into(),
-        });
-    };
-    let capture = &working;
     let stop = plan.stop_after.unwrap_or(Stage::Dr);
     let last = if cfg.dr { stop } else { stop.min(Stage::Init) };
     let from = plan.from;
     if from > last {
         return Err(ReconError::EmptyPlan { from, stop: last });
     }
-    let ctx = Context::new(capture, out_dir, progress);
-    crate::preflight::check(&ctx)?;
-    // Cancelled while the meshes were checked: the earlier run's files are still whole.
-    progress.check()?;
+    // The capture as given is checked before anything is written, in the canonical frame; an
+    // imported capture that no head fit has placed yet is checked once stage `head` has.
+    if let Some(given) = capture.in_canonical_frame().map_err(ReconError::Capture)? {
+        crate::preflight::check(&Context::new(&given, out_dir, progress))?;
+        // Cancelled while the meshes were checked: the earlier run's files are still whole.
+        progress.check()?;
+    }
     crate::run_folder::claim(out_dir, &plan, &capture.dir)?;
     mkdir(out_dir)?;
     let mut report = Report::resumed(&capture.dir, out_dir, from);
-    report.warnings.extend(missing_masks_warning(capture));
     report.save(&out_dir.join("report.json"))?;
     ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;
     // The report is written whatever happens: a cancelled or failed run lists the stages it finished.
-    let run = run_stages(&ctx, cfg, &mut report, from, last);
+    let run = run_all(capture, out_dir, cfg, &mut report, from, last, progress);
     (report.status, report.message) = match &run {
         Ok(()) => (RunStatus::Complete, None),
         Err(e) => {
-            // What the unfinished stage wrote goes (as far as it can: the error to report is `e`).
-            for f in ctx.take_written() {
-                let _ = remove(&ctx.path(&f));
-            }
             let status = if matches!(e, ReconError::Cancelled(_)) { RunStatus::Cancelled } else { RunStatus::Failed };
             (status, Some(e.to_string()))
         }
@@ -130,7 +120,93 @@ pub fn missing_masks_warning(capture: &Capture) -> Option<String> {
     ))
 }
 
-/// The stages from `from` to `last`, recorded in `report`.
+/// Runs `f`, a stage on `ctx`; when it fails, what it wrote goes (as far as it can: the error to
+/// report is the stage's).
+fn guarded<T>(ctx: &Context<'_>, f: impl FnOnce() -> Result<T, ReconError>) -> Result<T, ReconError> {
+    let r = f();
+    if r.is_err() {
+        for f in ctx.take_written() {
+            let _ = remove(&ctx.path(&f));
+        }
+    }
+    r
+}
+
+/// Every stage from `from` to `last`, recorded in `report`: stage `head` on the capture as loaded
+/// (its files' frame), then, in the canonical frame, stage `masks` and the rest ([`run_stages`]).
+fn run_all(
+    capture: &Capture,
+    out_dir: &Path,
+    cfg: &ReconstructConfig,
+    report: &mut Report,
+    from: Stage,
+    last: Stage,
+    progress: &dyn Progress,
+) -> Result<(), ReconError> {
+    let runs = |s: Stage| from <= s && s <= last;
+    let head = if stages::head::needed(capture, cfg.make_masks) {
+        let ctx = Context::new(capture, out_dir, progress);
+        Some(if runs(Stage::Head) {
+            let t = Instant::now();
+            let o = guarded(&ctx, || {
+                let (o, meshes) = stages::head::run(&ctx, cfg)?;
+                o.save(&ctx, &meshes)?;
+                Ok(o)
+            })?;
+            finished(&ctx, report, Stage::Head, t, &o.fit)?;
+            o
+        } else {
+            HeadOut::load(&ctx, from)?
+        })
+    } else {
+        None
+    };
+    let placed = match &head {
+        Some(h) => h.apply(capture, out_dir),
+        None => capture.clone(),
+    };
+    let Some(placed) = placed.in_canonical_frame().map_err(ReconError::Capture)? else {
+        return Err(ReconError::NotCanonical {
+            dir: capture.dir.clone(),
+            frame: capture.frame.name().into(),
+            units: capture.units.name().into(),
+        });
+    };
+    if head.is_some() {
+        // What the fit made, checked as a user's meshes are.
+        crate::preflight::check(&Context::new(&placed, out_dir, progress))?;
+    }
+    if last == Stage::Head {
+        return Ok(());
+    }
+
+    let masked = if stages::masks::needed(&placed, cfg) {
+        let ctx = Context::new(&placed, out_dir, progress);
+        if runs(Stage::Masks) {
+            let t = Instant::now();
+            let o = guarded(&ctx, || {
+                let o = stages::masks::run(&ctx, cfg)?;
+                o.save(&ctx)?;
+                Ok(o)
+            })?;
+            finished(&ctx, report, Stage::Masks, t, &o.report)?;
+        } else {
+            MasksOut::check_saved(&ctx, from)?;
+        }
+        stages::masks::apply(&placed, out_dir)
+    } else {
+        placed
+    };
+    if last == Stage::Masks {
+        return Ok(());
+    }
+    report.warnings.extend(missing_masks_warning(&masked));
+    report.save(&out_dir.join("report.json"))?;
+    let ctx = Context::new(&masked, out_dir, progress);
+    guarded(&ctx, || run_stages(&ctx, cfg, report, from.max(Stage::Orient2d), last))
+}
+
+/// The stages from `from` (orient2d or later) to `last`, recorded in `report`.
 fn run_stages(
     ctx: &Context<'_>,
     cfg: &ReconstructConfig,

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use hairrecon_core::camera::Camera;
 use hairrecon_core::capture::{CaptureError, CaptureSpec, FrameSpec};
 use hairrecon_core::formats::{read_mesh, read_ply_mesh_bytes, write_mesh};
 use hairrecon_core::{FormatError, TriMesh};
@@ -79,13 +80,8 @@ pub fn fit_capture(
     let cameras = spec.validate(json_path)?;
     let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
     let raw_path = dir.join(&spec.raw_mesh);
-    let raw = read_mesh(&raw_path)?;
-    let points = HeadTemplate::new(&template.head, Some(&template.scalp), 2000, 7).ok_or(CaptureFitError::Template)?;
     let cams = use_cameras.then_some(cameras.as_slice());
-    let fit =
-        fit_similarity(&points, &raw, cams, opts).map_err(|source| CaptureFitError::Fit { raw: raw_path, source })?;
-    let to_capture = fit.to_canonical.inverse();
-    let (head, scalp) = (transform_mesh(&template.head, &to_capture), transform_mesh(&template.scalp, &to_capture));
+    let (fit, head, scalp) = fit_files(&raw_path, cams, template, opts)?;
     let scalp_error = match &spec.scalp_mesh {
         Some(given) => {
             let given = read_mesh(dir.join(given))?;
@@ -97,6 +93,23 @@ pub fn fit_capture(
         None => None,
     };
     Ok(CaptureFit { fit, head, scalp, scalp_error, spec })
+}
+
+/// Fits `template` to the raw mesh in `raw_path` (with `cameras` in the same frame, when given):
+/// the fit, and the template's head and scalp mapped into the raw mesh's frame.
+pub fn fit_files(
+    raw_path: &Path,
+    cameras: Option<&[Camera]>,
+    template: &Template,
+    opts: &FitOptions,
+) -> Result<(FitResult, TriMesh, TriMesh), CaptureFitError> {
+    let raw = read_mesh(raw_path)?;
+    let points = HeadTemplate::new(&template.head, Some(&template.scalp), 2000, 7).ok_or(CaptureFitError::Template)?;
+    let fit = fit_similarity(&points, &raw, cameras, opts)
+        .map_err(|source| CaptureFitError::Fit { raw: raw_path.into(), source })?;
+    let to_capture = fit.to_canonical.inverse();
+    let (head, scalp) = (transform_mesh(&template.head, &to_capture), transform_mesh(&template.scalp, &to_capture));
+    Ok((fit, head, scalp))
 }
 
 impl CaptureFit {
@@ -111,35 +124,46 @@ impl CaptureFit {
         cameras_used: bool,
         seconds: f64,
     ) -> serde_json::Value {
-        let (fit, spec) = (&self.fit, &self.spec);
-        let s = fit.to_canonical;
-        let (axis, degrees) = s.axis_angle_degrees();
-        serde_json::json!({
+        let spec = &self.spec;
+        let mut r = serde_json::json!({
             "raw_mesh": spec.raw_mesh,
             "template": template.map_or_else(|| "bundled".to_string(), |p| p.display().to_string()),
             "scalp": scalp,
             "units": spec.units,
             "frame": spec.frame.as_deref().unwrap_or("canonical"),
-            "to_canonical": {
-                "scale": s.scale,
-                "rotation_axis": axis.to_array(),
-                "rotation_degrees": degrees,
-                "rotation_matrix": matrix_rows(s.rotation),
-                "translation": s.translation.to_array(),
-            },
-            "residual_mm": fit.residual_mm,
-            "on_mesh_fraction": fit.score.on_surface,
-            "covered_fraction": fit.score.inside,
-            "exposed_fraction": fit.score.outside,
-            "cost": fit.score.cost,
-            "runner_up_cost": fit.runner_up_cost,
-            "cameras_used": cameras_used,
-            "scalp_error_against_the_captures_scalp": self.scalp_error.map(|e| serde_json::json!({
-                "mean_mm": e.mean * 1e3, "p95_mm": e.p95 * 1e3, "max_mm": e.max * 1e3
-            })),
-            "seconds": seconds,
-        })
+        });
+        if let (Some(r), serde_json::Value::Object(fit)) = (r.as_object_mut(), fit_json(&self.fit)) {
+            r.extend(fit);
+        }
+        r["cameras_used"] = cameras_used.into();
+        r["scalp_error_against_the_captures_scalp"] = serde_json::json!(self.scalp_error.map(|e| serde_json::json!({
+            "mean_mm": e.mean * 1e3, "p95_mm": e.p95 * 1e3, "max_mm": e.max * 1e3
+        })));
+        r["seconds"] = seconds.into();
+        r
     }
+}
+
+/// A fit as JSON: the similarity to the canonical frame, the residual, the fractions of the
+/// template on, inside and outside the raw mesh, the cost and the runner-up's.
+pub fn fit_json(fit: &FitResult) -> serde_json::Value {
+    let s = fit.to_canonical;
+    let (axis, degrees) = s.axis_angle_degrees();
+    serde_json::json!({
+        "to_canonical": {
+            "scale": s.scale,
+            "rotation_axis": axis.to_array(),
+            "rotation_degrees": degrees,
+            "rotation_matrix": matrix_rows(s.rotation),
+            "translation": s.translation.to_array(),
+        },
+        "residual_mm": fit.residual_mm,
+        "on_mesh_fraction": fit.score.on_surface,
+        "covered_fraction": fit.score.inside,
+        "exposed_fraction": fit.score.outside,
+        "cost": fit.score.cost,
+        "runner_up_cost": fit.runner_up_cost,
+    })
 }
 
 /// A matrix as its rows.

@@ -35,7 +35,7 @@ use render::{Surface, ViewHits};
 use trimap::Trimap;
 
 /// The parameters of the masks.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MaskOptions {
     pub region: RegionOptions,

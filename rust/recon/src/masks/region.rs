@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use super::colour::Gmm;
 
 /// The parameters of the hair region.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RegionOptions {
     /// A vertex within this distance (mm) of the fitted head's skin is skin.

@@ -3,14 +3,17 @@
 //! a `run` function from the earlier stages' outputs and the stage's part of the
 //! [`crate::config::ReconstructConfig`]. The runner ([`crate::runner`]) calls them in order.
 //!
-//! Data flows one way: capture → [`orient2d`] (2D orientation maps) → [`orient3d`] (oriented 3D
+//! Data flows one way: capture → [`head`] (the frame, head and scalp it lacks) → [`masks`] (the
+//! hair masks it lacks) → [`orient2d`] (2D orientation maps) → [`orient3d`] (oriented 3D
 //! points) → [`partings`] (the scalp, with the skin the views see) → [`direction`] (directed
 //! points) → [`init`] (initial guides and children) → [`dr`] (strands optimized by differentiable
 //! rendering).
 
 pub mod direction;
 pub mod dr;
+pub mod head;
 pub mod init;
+pub mod masks;
 pub mod orient2d;
 pub mod orient3d;
 pub mod partings;
@@ -25,10 +28,12 @@ use crate::config::Stage;
 use crate::error::ReconError;
 use crate::progress::Progress;
 
-/// Files each stage writes (besides `orient2d/<view>.exr|png`); `guides.hair` and `strands.hair`
+/// Files each stage writes (besides `masks/<view>.png` and `orient2d/<view>.exr|png`); `guides.hair` and `strands.hair`
 /// are the last strand stage's. A run lists the files it actually wrote in `report.json`; this list
 /// is what a report without that list (or an unreadable one) is assumed to have.
-pub const OUTPUTS: [(Stage, &[&str]); 6] = [
+pub const OUTPUTS: [(Stage, &[&str]); 8] = [
+    (Stage::Head, &["fitted_head.ply", "fitted_scalp.ply", "head_fit.json"]),
+    (Stage::Masks, &["hair_region.ply", "masks.json"]),
     (Stage::Orient2d, &["orient2d/maps.bin"]),
     (Stage::Orient3d, &["points3d.ply"]),
     (Stage::Partings, &["partings.ply", "partings.json"]),
