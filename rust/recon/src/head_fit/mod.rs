@@ -216,6 +216,13 @@ pub fn fit_similarity(
         }
     }
     let (best, runner_up) = best;
+    // Only a pose that passes is refined in scale (and only by probes that pass): a probe must not
+    // turn a rejected fit, a sphere's say, into an accepted one.
+    let best = if acceptable(&best.score, opts) && best.score.on_surface < opts.clean_fraction {
+        ctx.probe_scales(best, opts)
+    } else {
+        best
+    };
     let score = best.score;
     if !acceptable(&score, opts) {
         return Err(FitError::Poor {
@@ -257,6 +264,9 @@ impl Target for CoarseTarget<'_> {
         self.bvh.crosses(p, dir, reach)
     }
 }
+
+/// The scale factors [`Search::probe_scales`] tries about the best pose.
+const SCALE_PROBES: [f64; 6] = [0.8, 0.85, 0.9, 0.95, 1.05, 1.1];
 
 /// One search over start poses (template → normalised raw).
 struct Search<'a> {
@@ -314,6 +324,48 @@ impl Search<'_> {
             .collect();
         out.sort_by(|a, b| a.1.score.cost.total_cmp(&b.1.score.cost).then(a.0.cmp(&b.0)));
         out
+    }
+
+    /// ICP settles at the nearest scale that fits, and under hair and clothes a head of the wrong
+    /// size can fit nearly as well as the true one (a clothed torso over the neck held one at 1.15
+    /// times the true size). So the best pose is tried again from larger and smaller scales about
+    /// its own centre, each as it is and refined on all points; the lowest cost of the probes that
+    /// pass ([`acceptable`]) wins.
+    fn probe_scales(&self, best: Candidate, opts: &FitOptions) -> Candidate {
+        let c = self.template.stats.centre;
+        let m = best.t.apply(c);
+        let plane = IcpOptions {
+            metric: IcpMetric::Plane,
+            iterations: self.opts.refine_iterations,
+            keep: self.opts.keep,
+            tolerance: 1e-7,
+            parallel: false,
+            cover: self.cover(),
+        };
+        let probes: Vec<Candidate> = SCALE_PROBES
+            .par_iter()
+            .flat_map_iter(|&k| {
+                let scale = best.t.scale * k;
+                let start =
+                    Similarity { scale, rotation: best.t.rotation, translation: m - scale * (best.t.rotation * c) };
+                let o = trimmed_icp(
+                    &self.template.points,
+                    Some(&self.template.normals),
+                    self.bvh,
+                    start,
+                    self.cap(&start),
+                    &plane,
+                );
+                [start, o.transform].map(|t| Candidate { t, score: self.score(&t, usize::MAX, false) })
+            })
+            .collect();
+        probes.into_iter().filter(|p| acceptable(&p.score, opts)).fold(best, |a, b| {
+            if b.score.cost < a.score.cost {
+                b
+            } else {
+                a
+            }
+        })
     }
 
     /// Brief ICP from every start, then full ICP from the best few; the best and the best whose
