@@ -179,14 +179,29 @@ def parse_args(argv=None):
         "--background clutter, a COLMAP text model (sparse/0) and mesh.ply in a random similarity frame (seeded "
         "by --seed), the ground truth under gt/ (scripts/synthetic_wild.py); import it with hairrecon import colmap",
     )
+    p.add_argument(
+        "--photo-scale",
+        type=int,
+        default=WILD_PHOTO_SCALE,
+        help=f"with --wild: the photos' height as a multiple of --height (default {WILD_PHOTO_SCALE}; 1 renders a "
+        "cheap project whose photos are at the working height)",
+    )
+    p.add_argument(
+        "--keep-capture",
+        action="store_true",
+        help="with --wild: keep the rendered capture (canonical frame, ground-truth masks, head and scalp, photos "
+        "at the project's size) as OUT/_capture, the same hair as the project for a side-by-side run",
+    )
     a = p.parse_args(argv)
+    if a.photo_scale < 1:
+        p.error("--photo-scale must be at least 1")
     for k, v in PRESETS[a.preset].items():
         if k != "strands" and getattr(a, k) is None:
             setattr(a, k, v)
     if a.wild:
         if a.no_fuse or a.only_view is not None or a.skip_photos:
             p.error("--wild needs the raw mesh of every view: no --no-fuse, --only-view or --skip-photos")
-        a.height *= WILD_PHOTO_SCALE
+        a.height *= a.photo_scale
         a.background = "clutter"
         a.no_blend = True  # the scene is in the canonical frame, which the project does not know
     return a
@@ -486,16 +501,18 @@ def main(argv=None):
         return render_capture(a)
     t0 = time.time()
     project = a.out.resolve()
-    a.out = project / "_capture"  # the rendered capture, removed once the project is made (kept for --resume)
+    # The rendered capture, removed once the project is made unless --keep-capture (kept for --resume).
+    a.out = project / "_capture"
     rc = render_capture(a)
     if rc != 0:
         return rc
     frame = synthetic_wild.make_project(a.out, project, a.seed, write_jpeg)
-    shutil.rmtree(a.out)
+    if not a.keep_capture:
+        shutil.rmtree(a.out)
     print(
         f"render_synthetic: wild project {project} (frame scale {frame['scale']:.5f} m per unit) in "
         f"{time.time() - t0:.1f} s; import it with: hairrecon import colmap {project}/sparse/0 --images "
-        f"{project}/images --mesh {project}/mesh.ply --out CAPTURE --height {a.height // WILD_PHOTO_SCALE}",
+        f"{project}/images --mesh {project}/mesh.ply --out CAPTURE --height {a.height // a.photo_scale}",
         flush=True,
     )
     return 0

@@ -2,7 +2,9 @@
 //! with a hair shell (its scalp pushed 8 mm outward) as the raw mesh, six views ray-cast from it
 //! with textured brown hair, pink skin and a green-and-grey checkered backdrop, and the shell's
 //! pixels as the ground-truth masks. Masks made without them must match them, never touch the
-//! backdrop, and `--write` must put them into a capture that had none.
+//! backdrop, and `--write` must put them into a capture that had none. `hairrecon reconstruct` on
+//! the same scene moved into another frame, without head, scalp or masks, must fit the head (the
+//! frame within 1° and 1%) and make the masks itself, in its output folder.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -182,4 +184,79 @@ fn write_adds_masks_and_the_hair_region_to_a_capture_without_masks() {
     let before = std::fs::read(dir.join("masks/view_0.png")).unwrap();
     masks(&[dir.to_str().unwrap(), "--write"]);
     assert_eq!(before, std::fs::read(dir.join("masks/view_0.png")).unwrap());
+}
+
+#[test]
+fn reconstruct_fits_the_head_and_makes_masks_for_an_imported_capture_without_them() {
+    use glam::{DMat3, DVec3};
+    use hairrecon_core::similarity::{transform_camera, transform_mesh, Similarity};
+    let dir = tmp("imported");
+    capture(&dir, false);
+    // The capture's frame: canonical metres → 23 units a metre, turned, moved.
+    let to_canonical = Similarity {
+        scale: 1.0 / 23.0,
+        rotation: DMat3::from_rotation_x(1.1) * DMat3::from_rotation_z(-2.4),
+        translation: DVec3::new(0.2, -0.4, 0.1),
+    };
+    let to_capture = to_canonical.inverse();
+    let raw = read_mesh(dir.join("raw.ply")).unwrap();
+    write_mesh(dir.join("raw.ply"), &transform_mesh(&raw, &to_capture)).unwrap();
+    let json = dir.join("capture.json");
+    let mut spec: CaptureSpec = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for v in &mut spec.views {
+        let cam = Camera::new(v.k, v.r, v.t, v.width, v.height).unwrap();
+        let moved = transform_camera(&cam, &to_capture).unwrap();
+        (v.r, v.t) = (moved.r_rows(), moved.t().to_array());
+    }
+    (spec.units, spec.frame, spec.head_mesh, spec.scalp_mesh) = ("unknown".into(), Some("imported".into()), None, None);
+    spec.write(&dir).unwrap();
+    let before = std::fs::read(&json).unwrap();
+
+    let out = dir.join("out");
+    let o = Command::new(bin())
+        .args(["reconstruct", dir.to_str().unwrap(), "--out", out.to_str().unwrap(), "--stop-after", "masks"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&json).unwrap(), before, "the capture's own files are not changed");
+    let fit: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("head_fit.json")).unwrap()).unwrap();
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    let spec_fit = &fit["to_canonical"];
+    let rows: Vec<[f64; 3]> = (0..3).map(|i| [0, 1, 2].map(|j| f(&spec_fit["rotation"][i][j]))).collect();
+    let found = Similarity {
+        scale: f(&spec_fit["scale"]),
+        rotation: DMat3::from_cols_array_2d(&[rows[0], rows[1], rows[2]]).transpose(),
+        translation: DVec3::new(0.0, 0.0, 0.0),
+    };
+    let degrees = found.rotation_angle_to(&to_canonical);
+    let scale = found.scale / to_canonical.scale;
+    println!("fit: {degrees:.2} deg, scale x{scale:.4}");
+    assert!(degrees < 1.0 && (scale - 1.0).abs() < 0.01, "{fit:#}");
+    assert!(fit["head"].as_bool().unwrap() && fit["scalp"].as_bool().unwrap(), "{fit:#}");
+    // The fitted scalp, in the capture's frame, lies on the true one.
+    let scalp = transform_mesh(&read_mesh(out.join("fitted_scalp.ply")).unwrap(), &to_canonical);
+    let truth = Bvh::new(read_mesh(fixtures().join("scalp.ply")).unwrap());
+    let d: Vec<f32> =
+        scalp.vertices.iter().map(|&v| (truth.closest_point(v, f32::INFINITY).unwrap().point - v).length()).collect();
+    let mean_mm = 1e3 * d.iter().sum::<f32>() / d.len() as f32;
+    println!("fitted scalp: mean {mean_mm:.2} mm from the true one");
+    assert!(mean_mm < 2.0, "{mean_mm}");
+    // Masks of every view, against the shell's pixels.
+    for i in 0..6 {
+        let made = hairrecon_core::image_io::read_gray_f32(out.join(format!("masks/view_{i}.png"))).unwrap();
+        let gt = hairrecon_core::image_io::read_gray_f32(dir.join(format!("gt/view_{i}.png"))).unwrap();
+        let (mut inter, mut union) = (0, 0);
+        for (&a, &g) in made.data.iter().zip(&gt.data) {
+            inter += usize::from(a >= 0.5 && g >= 0.5);
+            union += usize::from(a >= 0.5 || g >= 0.5);
+        }
+        let iou = inter as f64 / union as f64;
+        assert!(iou > 0.9, "view_{i}: IoU {iou}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let stages: Vec<&str> = report["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    assert_eq!(stages, ["head", "masks"]);
+    assert!(report["warnings"].as_array().is_none_or(|w| w.is_empty()), "{report:#}");
 }
