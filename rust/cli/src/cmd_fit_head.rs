@@ -38,6 +38,11 @@ pub struct FitHeadArgs {
     /// Template points used by the fit.
     #[arg(long, default_value_t = 2000)]
     pub samples: usize,
+    /// The true frame (a wild synthetic project's gt/frame.json: {"scale", "rotation" by rows,
+    /// "translation"}, as capture.json's to_canonical): prints the fit's error against it, and the
+    /// true frame's own score.
+    #[arg(long, value_name = "FRAME_JSON")]
+    pub gt_frame: Option<PathBuf>,
     /// Fail when more than this fraction of the template's skin lies outside the raw mesh.
     #[arg(long, default_value_t = FitOptions::default().max_exposed_fraction)]
     pub max_exposed: f64,
@@ -60,10 +65,47 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
     let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras)?;
     let out =
         fitted.report(template_path.as_deref(), scalp_path.as_deref(), !args.no_cameras, t0.elapsed().as_secs_f64());
+    let mut out = out;
+    if let Some(path) = &args.gt_frame {
+        out["against_the_true_frame"] = frame_error(path, &fitted, &template, &json_path, &opts)?;
+    }
     let text = serde_json::to_string_pretty(&out)?;
     if args.write {
         write_into_capture(&json_path, &fitted, &text)?;
     }
     println!("{text}");
     Ok(())
+}
+
+/// The fit against a known frame: the rotation between them, the ratio of the scales, and the
+/// true frame's score (cost and fractions, as the fit's own).
+fn frame_error(
+    path: &std::path::Path,
+    fitted: &hairrecon_recon::head_fit::capture_fit::CaptureFit,
+    template: &Template,
+    json_path: &std::path::Path,
+    opts: &FitOptions,
+) -> Result<serde_json::Value, Box<dyn std::error::Error + Send + Sync>> {
+    use hairrecon_core::capture::FrameSpec;
+    use hairrecon_recon::head_fit::{score_frame, HeadTemplate};
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let spec: FrameSpec = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let truth = spec.similarity().ok_or_else(|| format!("{}: not a similarity", path.display()))?;
+    let found = fitted.fit.to_canonical;
+    let dir = json_path.parent().unwrap_or(std::path::Path::new("."));
+    let raw = hairrecon_core::formats::read_mesh(dir.join(&fitted.spec.raw_mesh))?;
+    let points = HeadTemplate::new(&template.head, Some(&template.scalp), 2000, 7).ok_or("the template has no skin")?;
+    let s = score_frame(&points, &raw, &truth, opts);
+    // The fitted scalp against the template's scalp placed by the true frame, canonical mm.
+    let placed = hairrecon_recon::head_fit::transform_mesh(&template.scalp, &truth.inverse());
+    let e = hairrecon_recon::head_fit::compare::surface_error(&fitted.scalp, &placed, 20_000);
+    let mm = |x: f64| x * truth.scale * 1e3;
+    Ok(serde_json::json!({
+        "scalp_error_mm": e.map(|e| serde_json::json!({"mean": mm(e.mean), "p95": mm(e.p95), "max": mm(e.max)})),
+        "rotation_error_degrees": found.rotation_angle_to(&truth),
+        "scale_ratio": truth.scale / found.scale,
+        "true_frame_cost": s.cost,
+        "true_frame_on_mesh_fraction": s.on_surface,
+        "true_frame_exposed_fraction": s.outside,
+    }))
 }

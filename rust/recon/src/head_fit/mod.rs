@@ -243,6 +243,15 @@ pub fn fit_similarity(
     })
 }
 
+/// The score ([`score_pose`]) of a given frame: `to_canonical` takes the raw mesh's coordinates to
+/// the canonical frame (a fit's, or one known otherwise, as a synthetic capture's true frame).
+pub fn score_frame(template: &HeadTemplate, raw: &TriMesh, to_canonical: &Similarity, opts: &FitOptions) -> PoseScore {
+    let bvh = RawSurface::new(raw.clone(), opts.normal_smoothing);
+    let t = to_canonical.inverse();
+    let r = template.stats.radius;
+    score_pose(&template.points, &template.normals, &bvh, &t, opts.inlier_mm * 1e-3, r, true)
+}
+
 fn acceptable(score: &PoseScore, opts: &FitOptions) -> bool {
     score.on_surface >= opts.min_inlier_fraction && score.outside <= opts.max_exposed_fraction
 }
@@ -266,7 +275,7 @@ impl Target for CoarseTarget<'_> {
 }
 
 /// The scale factors [`Search::probe_scales`] tries about the best pose.
-const SCALE_PROBES: [f64; 6] = [0.8, 0.85, 0.9, 0.95, 1.05, 1.1];
+const SCALE_PROBES: [f64; 7] = [0.75, 0.8, 0.85, 0.9, 0.95, 1.05, 1.1];
 
 /// One search over start poses (template → normalised raw).
 struct Search<'a> {
@@ -332,8 +341,20 @@ impl Search<'_> {
     /// its own centre, each as it is and refined on all points; the lowest cost of the probes that
     /// pass ([`acceptable`]) wins.
     fn probe_scales(&self, best: Candidate, opts: &FitOptions) -> Candidate {
-        let c = self.template.stats.centre;
-        let m = best.t.apply(c);
+        // About the template's centre, and about the skin the pose has on the mesh (the face,
+        // mostly): a head of the wrong size that matches the face scales best about the face.
+        let cap = self.tau * best.t.scale;
+        let on: Vec<DVec3> = self
+            .template
+            .points
+            .iter()
+            .filter(|&&p| self.bvh.closest(best.t.apply(p), cap).distance < cap)
+            .copied()
+            .collect();
+        let mut anchors = vec![self.template.stats.centre];
+        if !on.is_empty() {
+            anchors.push(on.iter().sum::<DVec3>() / on.len() as f64);
+        }
         let plane = IcpOptions {
             metric: IcpMetric::Plane,
             iterations: self.opts.refine_iterations,
@@ -342,9 +363,11 @@ impl Search<'_> {
             parallel: false,
             cover: self.cover(),
         };
-        let probes: Vec<Candidate> = SCALE_PROBES
+        let starts: Vec<(DVec3, f64)> = anchors.iter().flat_map(|&c| SCALE_PROBES.map(|k| (c, k))).collect();
+        let probes: Vec<Candidate> = starts
             .par_iter()
-            .flat_map_iter(|&k| {
+            .flat_map_iter(|&(c, k)| {
+                let m = best.t.apply(c);
                 let scale = best.t.scale * k;
                 let start =
                     Similarity { scale, rotation: best.t.rotation, translation: m - scale * (best.t.rotation * c) };

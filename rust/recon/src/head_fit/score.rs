@@ -56,8 +56,12 @@ pub fn score_pose(
     let reach = COVER_DEPTH * radius * t.scale;
     let one = |(p, n): (&DVec3, &DVec3)| {
         let x = t.apply(*p);
-        let d = bvh.closest(x, tau * t.scale).distance / t.scale;
-        if d < tau {
+        // Compared in the target's units: a miss reports the cap itself, which divided by the
+        // scale could round to just under `tau` and count as on the surface.
+        let cap = tau * t.scale;
+        let m = bvh.closest(x, cap);
+        let d = m.distance / t.scale;
+        if m.distance < cap {
             (0u8, d)
         } else if bvh.crosses(x, t.rotation * *n, reach) {
             (1, d)
@@ -95,5 +99,32 @@ pub fn score_pose(
         inside: inside as f64 / n,
         outside: outside as f64 / n,
         rms_on_surface: if on > 0 { (sq / on as f64).sqrt() } else { f64::INFINITY },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::head_fit::icp::Match;
+    use glam::DMat3;
+
+    /// A target with nothing near anything: every query misses.
+    struct Nothing;
+
+    impl Target for Nothing {
+        fn closest(&self, p: DVec3, cap: f64) -> Match {
+            Match { point: p, normal: DVec3::ZERO, distance: cap }
+        }
+    }
+
+    #[test]
+    fn a_miss_is_never_on_the_surface_whatever_the_scale() {
+        let points = vec![DVec3::new(0.01, 0.02, 0.03); 4];
+        let normals = vec![DVec3::Z; 4];
+        for i in 0..200 {
+            let t = Similarity { scale: 0.01 + 0.37 * i as f64, rotation: DMat3::IDENTITY, translation: DVec3::ZERO };
+            let s = score_pose(&points, &normals, &Nothing, &t, 0.005, 0.1, false);
+            assert_eq!((s.on_surface, s.outside, s.cost), (0.0, 1.0, 1.0), "scale {}", t.scale);
+        }
     }
 }
