@@ -26,7 +26,7 @@ use crate::eval::Evaluator;
 use crate::progress::Progress;
 use crate::report::{Report, RunStatus};
 use crate::stages::direction::DirectionOut;
-use crate::stages::head::HeadOut;
+use crate::stages::head::{HeadOut, Need};
 use crate::stages::init::InitOut;
 use crate::stages::masks::MasksOut;
 use crate::stages::orient2d::Orient2dOut;
@@ -144,22 +144,35 @@ fn run_all(
     progress: &dyn Progress,
 ) -> Result<(), ReconError> {
     let runs = |s: Stage| from <= s && s <= last;
-    let head = if stages::head::needed(capture, cfg.make_masks) {
+    let need = stages::head::needed(capture, cfg.make_masks);
+    let head = if need == Need::No {
+        None
+    } else {
         let ctx = Context::new(capture, out_dir, progress);
-        Some(if runs(Stage::Head) {
+        let made = if runs(Stage::Head) {
             let t = Instant::now();
-            let o = guarded(&ctx, || {
+            let made = guarded(&ctx, || {
                 let (o, meshes) = stages::head::run(&ctx, cfg)?;
                 o.save(&ctx, &meshes)?;
                 Ok(o)
-            })?;
-            finished(&ctx, report, Stage::Head, t, &o.fit)?;
-            o
+            });
+            if let Ok(o) = &made {
+                finished(&ctx, report, Stage::Head, t, &o.fit)?;
+            }
+            made
         } else {
-            HeadOut::load(&ctx, from)?
-        })
-    } else {
-        None
+            HeadOut::load(&ctx, from)
+        };
+        match made {
+            Ok(o) => Some(o),
+            // Wanted only for the masks: the run goes on without them (a warning says so below).
+            Err(ReconError::HeadFit(msg)) if need == Need::ForMasks => {
+                report.warnings.push(format!("no hair masks were made: the head fit failed: {msg}"));
+                None
+            }
+            Err(ReconError::MissingStageOutput { .. }) if need == Need::ForMasks => None,
+            Err(e) => return Err(e),
+        }
     };
     let placed = match &head {
         Some(h) => h.apply(capture, out_dir),
@@ -180,7 +193,8 @@ fn run_all(
         return Ok(());
     }
 
-    let masked = if stages::masks::needed(&placed, cfg) {
+    // Masks need a head: without one (a fit that failed) the views stay without masks.
+    let masked = if stages::masks::needed(&placed, cfg) && placed.head_mesh.is_some() {
         let ctx = Context::new(&placed, out_dir, progress);
         if runs(Stage::Masks) {
             let t = Instant::now();

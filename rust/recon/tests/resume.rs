@@ -380,5 +380,14 @@ fn views_without_masks_get_masks_from_stage_masks_or_a_warning() {
     std::fs::remove_file(out_dir.join(format!("masks/{}.png", cap.views[1].name))).unwrap();
     let e = reconstruct(&cap, &out_dir, &cfg, plan, &NoProgress).unwrap_err();
     assert!(matches!(e, ReconError::MissingStageOutput { needs: Stage::Masks, .. }), "{e}");
+
+    // Without a head, the masks need the head fit; where it fails (the capture's raw mesh is a
+    // sphere with hair, no face) the run goes on without masks and says why.
+    cap.head_mesh = None;
+    let plan = Plan { stop_after: Some(Stage::Orient2d), ..Plan::default() };
+    let run = reconstruct(&cap, &cap.dir.join("headless"), &cfg, plan, &NoProgress).unwrap();
+    let w = run.report.warnings.join("\n");
+    assert!(w.contains("no hair masks were made: the head fit") && w.contains("have no hair mask"), "{w}");
+    assert_eq!(run.report.stages.iter().map(|s| s.stage).collect::<Vec<_>>(), [Stage::Orient2d]);
     let _ = std::fs::remove_dir_all(&cap.dir);
 }

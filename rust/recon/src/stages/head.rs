@@ -32,12 +32,30 @@ pub struct HeadOut {
     pub fit: serde_json::Value,
 }
 
+/// Why a capture needs the stage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Need {
+    /// It has what the later stages need.
+    No,
+    /// Only for the masks of views without one (they need the head): when the fit fails, the run
+    /// goes on without those masks, with a warning.
+    ForMasks,
+    /// It has no frame (an imported capture not yet placed) or no scalp: no run without the fit.
+    Required,
+}
+
 /// Whether the capture (as loaded, in its files' frame) needs the stage, with `make_masks` when
-/// masks will be made for views without them (they need the head).
-pub fn needed(capture: &Capture, make_masks: bool) -> bool {
+/// masks will be made for views without them.
+pub fn needed(capture: &Capture, make_masks: bool) -> Need {
     let unplaced = !capture.is_canonical() && capture.to_canonical.is_none();
     let masks_need_head = make_masks && capture.head_mesh.is_none() && capture.views.iter().any(|v| v.mask.is_none());
-    unplaced || capture.scalp_mesh.is_none() || masks_need_head
+    if unplaced || capture.scalp_mesh.is_none() {
+        Need::Required
+    } else if masks_need_head {
+        Need::ForMasks
+    } else {
+        Need::No
+    }
 }
 
 /// Fits the bundled head to the raw mesh of `ctx.capture` (as loaded, in its files' frame).
