@@ -308,6 +308,30 @@ fn cameras_around_the_head_give_its_up_and_centre() {
     assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL);
 }
 
+#[test]
+fn a_head_the_cameras_would_not_frame_is_refused() {
+    // The same head, but every camera 25 m away: it would be a speck in the photos (about 1% of
+    // their height), so whatever fits is not what the capture framed.
+    let head = fixture("head.ply");
+    let mut rng = Rng(15);
+    let truth = random_similarity(&mut rng);
+    let far: Vec<_> = (0..8)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / 8.0;
+            let eye = Vec3::new(25.0 * a.cos(), 25.0 * a.sin(), 0.1);
+            let c = hairrecon_core::Camera::look_at(eye, Vec3::new(0.0, 0.0, 0.05), Vec3::Z, 0.6, 400, 600).unwrap();
+            hairrecon_core::similarity::transform_camera(&c, &truth).unwrap()
+        })
+        .collect();
+    let raw = moved(&head, &truth);
+    let err = fit_similarity(&template(&head), &raw, Some(&far), &FitOptions::default()).unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, FitError::Framing { percent, .. } if percent < 3.0), "{msg}");
+    assert!(msg.contains("photos' height") && msg.contains("same frame"), "{msg}");
+    // Framed as a capture frames it, the same head fits.
+    assert!(fit_similarity(&template(&head), &raw, Some(&ring_cameras(&truth)), &FitOptions::default()).is_ok());
+}
+
 /// The head under a layer of hair as a raw mesh shows it: the surface pushed out along its normals
 /// by `thickness` over the scalp, the ears, the back of the head and the nape (the hair's outer
 /// surface; the skin under it is not in the mesh), blending to the bare face and throat.

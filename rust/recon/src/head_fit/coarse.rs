@@ -122,6 +122,36 @@ mod tests {
     use super::*;
 
     #[test]
+    fn framing_is_the_ball_s_height_in_the_photos() {
+        use glam::Vec3;
+        // Three cameras 1.2 m from a ball of 9 cm at (0.1, 0.2, 1.5), one behind a fourth that looks away.
+        let c = Vec3::new(0.1, 0.2, 1.5);
+        let mut cams: Vec<Camera> = (0..3)
+            .map(|i| {
+                let a = 2.0 * i as f32;
+                let eye = c + 1.2 * Vec3::new(a.cos(), a.sin(), 0.1).normalize();
+                Camera::look_at(eye, c, Vec3::Z, 0.5 + 0.1 * i as f32, 300, 400).unwrap()
+            })
+            .collect();
+        cams.push(Camera::look_at(c + Vec3::X, c + 2.0 * Vec3::X, Vec3::Z, 0.5, 300, 400).unwrap());
+        // In a frame scaled by 7 and moved: the fraction is the same.
+        let s =
+            crate::head_fit::Similarity { scale: 7.0, rotation: DMat3::from_rotation_z(0.4), translation: DVec3::ONE };
+        let f = Framing::new(&cams, &s).unwrap().fraction(s.apply(c.as_dvec3()), 7.0 * 0.09).unwrap();
+        // The ball's top and bottom as each camera sees them (the median camera of the three).
+        let mut seen: Vec<f64> = cams[..3]
+            .iter()
+            .map(|cam| {
+                let y = |dz: f32| f64::from(cam.project(c + Vec3::new(0.0, 0.0, dz)).unwrap().pixel.y);
+                (y(-0.09) - y(0.09)) / 400.0
+            })
+            .collect();
+        seen.sort_by(f64::total_cmp);
+        assert!((f / seen[1] - 1.0).abs() < 0.01, "{f} against {seen:?}");
+        assert!(f > 0.05 && f < 1.0, "{f}");
+    }
+
+    #[test]
     fn the_rotation_grid_covers_so3() {
         let grid = rotation_grid(240);
         // Every one of many probe rotations is near a grid rotation (the coarse ICP reaches about 30°).
@@ -139,5 +169,49 @@ mod tests {
             .fold(0.0, f64::max);
         println!("worst gap {worst:.1}°");
         assert!(worst < 35.0, "worst gap {worst:.1}°");
+    }
+}
+
+/// How the views frame a head: from each camera (in the normalised frame of the fit), how large a
+/// ball looks in its image. A photogrammetry capture of a head frames it, so a pose whose head
+/// would be a speck in every photo (or overflow them all) is not the head, however well it fits
+/// some clutter.
+#[derive(Debug, Clone)]
+pub struct Framing {
+    /// Per camera: its centre, its optical axis (unit) and fy / image height.
+    cams: Vec<(DVec3, DVec3, f64)>,
+}
+
+impl Framing {
+    /// The cameras' framing; `to_normalised` maps their frame (the raw mesh's) to the fit's.
+    pub fn new(cameras: &[Camera], to_normalised: &crate::head_fit::Similarity) -> Option<Self> {
+        let cams: Vec<(DVec3, DVec3, f64)> = cameras
+            .iter()
+            .map(|c| {
+                let axis = to_normalised.rotation * (c.r().transpose().as_dmat3() * DVec3::Z).normalize();
+                let fy = f64::from(c.k_rows()[1][1]);
+                (to_normalised.apply(c.center().as_dvec3()), axis, fy / f64::from(c.height().max(1)))
+            })
+            .collect();
+        (!cams.is_empty()).then_some(Self { cams })
+    }
+
+    /// The median, over the cameras in front of which it lies, of the apparent diameter of a ball
+    /// of `radius` at `centre`, as a fraction of the image height; `None` when no camera has it in
+    /// front.
+    pub fn fraction(&self, centre: DVec3, radius: f64) -> Option<f64> {
+        let mut f: Vec<f64> = self
+            .cams
+            .iter()
+            .filter_map(|&(c, axis, fy_h)| {
+                let z = (centre - c).dot(axis);
+                (z > 0.0).then(|| 2.0 * radius * fy_h / z)
+            })
+            .collect();
+        if f.is_empty() {
+            return None;
+        }
+        f.sort_by(f64::total_cmp);
+        Some(f[f.len() / 2])
     }
 }

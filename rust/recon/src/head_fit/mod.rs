@@ -75,6 +75,10 @@ pub struct FitOptions {
     pub clean_fraction: f64,
     /// Times each raw vertex normal is averaged with its neighbours' ([`surface::RawSurface`]).
     pub normal_smoothing: usize,
+    /// With cameras: the head's apparent size in the photos (twice the template's radius of
+    /// gyration, as a fraction of the image height, the median over the views) must lie in this
+    /// range; poses outside it lose to any inside, and a fit outside it fails.
+    pub framing: (f64, f64),
 }
 
 impl Default for FitOptions {
@@ -93,6 +97,7 @@ impl Default for FitOptions {
             fallback_scales: vec![1.0, 0.7, 0.5, 0.35, 0.25],
             clean_fraction: 0.9,
             normal_smoothing: 3,
+            framing: (0.1, 3.0),
         }
     }
 }
@@ -126,6 +131,12 @@ pub enum FitError {
          landmarks or a scalp by hand"
     )]
     Poor { on: f64, exposed: f64, inlier_mm: f64, min_on: f64, max_exposed: f64 },
+    #[error(
+        "the best pose of the head template would be {percent:.0}% of the photos' height (a capture of a head frames \
+         it at {low:.0}% to {high:.0}%): the raw mesh and the cameras do not show a head the template fits; check \
+         that they are in the same frame and that the mesh shows the face, or give a scalp and head by hand"
+    )]
+    Framing { percent: f64, low: f64, high: f64 },
 }
 
 /// A refined candidate.
@@ -190,7 +201,8 @@ pub fn fit_similarity(
     }
     let starts: Vec<Similarity> =
         centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
-    let ctx = Search { template, bvh: &bvh, cloud: &cloud, opts, tau: opts.inlier_mm * 1e-3 };
+    let framing = cameras.and_then(|c| coarse::Framing::new(c, &norm));
+    let ctx = Search { template, bvh: &bvh, cloud: &cloud, opts, tau: opts.inlier_mm * 1e-3, framing };
     let mut best = ctx.run(&starts);
     // Unless nearly all the skin is on the mesh already (a clean head), search again at a ladder
     // of smaller scales about the places where the surface is densest at a head's size: raw
@@ -223,6 +235,15 @@ pub fn fit_similarity(
     } else {
         best
     };
+    if let Some(f) = ctx.framing_of(&best.t) {
+        if !(opts.framing.0..=opts.framing.1).contains(&f) {
+            return Err(FitError::Framing {
+                percent: 100.0 * f,
+                low: 100.0 * opts.framing.0,
+                high: 100.0 * opts.framing.1,
+            });
+        }
+    }
     let score = best.score;
     if !acceptable(&score, opts) {
         return Err(FitError::Poor {
@@ -285,6 +306,8 @@ struct Search<'a> {
     opts: &'a FitOptions,
     /// On-surface distance, template units.
     tau: f64,
+    /// How the cameras frame a head (with cameras).
+    framing: Option<coarse::Framing>,
 }
 
 impl Search<'_> {
@@ -297,9 +320,11 @@ impl Search<'_> {
     }
 
     /// The score of a pose on the first `points` template points.
+    /// A pose whose head the cameras would not frame ([`FitOptions::framing`]) costs one more
+    /// than any pose they would.
     fn score(&self, t: &Similarity, points: usize, parallel: bool) -> PoseScore {
         let n = points.clamp(3, self.template.points.len());
-        score_pose(
+        let mut s = score_pose(
             &self.template.points[..n],
             &self.template.normals[..n],
             self.bvh,
@@ -307,7 +332,18 @@ impl Search<'_> {
             self.tau,
             self.template.stats.radius,
             parallel,
-        )
+        );
+        if self.framing_of(t).is_some_and(|f| !(self.opts.framing.0..=self.opts.framing.1).contains(&f)) {
+            s.cost += 1.0;
+        }
+        s
+    }
+
+    /// The head's apparent diameter (its template's radius of gyration, doubled) as a fraction of
+    /// the photos' height, the median over the views (with cameras).
+    fn framing_of(&self, t: &Similarity) -> Option<f64> {
+        let f = self.framing.as_ref()?;
+        f.fraction(t.apply(self.template.stats.centre), t.scale * self.template.stats.radius)
     }
 
     /// Brief point-to-plane ICP on the surface samples from each start, in parallel, ranked by
