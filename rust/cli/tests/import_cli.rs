@@ -1,6 +1,6 @@
 //! `hairrecon import` through the real binary: a small COLMAP model with JPEG photos becomes a
-//! capture in the model's own frame, which `reconstruct` then refuses with one clear line (head
-//! fitting is not in the pipeline yet); bad inputs are one line naming the file.
+//! capture in the model's own frame, on which `reconstruct` fits the head first (and, the mesh being
+//! one triangle, fails there with one clear line); bad inputs are one line naming the file.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -83,7 +83,8 @@ fn a_colmap_model_imports_and_reconstruct_refuses_its_frame() {
     // fx scales by 1/2; cx = 0.5 (149.5 + 0.5) - 0.5
     assert_eq!((v["K"][0][0].as_f64(), v["K"][0][2].as_f64()), (Some(140.0), Some(74.5)));
     assert!(dir.join("capture/images/P1.png").is_file() && dir.join("capture/raw_mesh.ply").is_file());
-    // The capture is in COLMAP's frame: reconstruct stops before writing anything.
+    // The capture is in COLMAP's frame: reconstruct fits the head first, which a one-triangle mesh
+    // cannot give; the error (the last line, after the stage's progress) names the mesh and what to do.
     let rec = Command::new(bin())
         .arg("reconstruct")
         .arg(dir.join("capture"))
@@ -91,9 +92,12 @@ fn a_colmap_model_imports_and_reconstruct_refuses_its_frame() {
         .arg(dir.join("out"))
         .output()
         .unwrap();
-    let line = error_line(&rec);
-    assert!(line.contains("imported frame") && line.contains("fit-head"), "{line}");
-    assert!(!dir.join("out").exists());
+    assert!(!rec.status.success());
+    let err = String::from_utf8_lossy(&rec.stderr).into_owned();
+    let line = err.lines().filter(|l| !l.trim().is_empty()).next_back().unwrap_or_default();
+    assert!(line.starts_with("hairrecon: error: the head fit: "), "{err}");
+    assert!(line.contains("raw_mesh.ply") && line.contains("to_canonical") && line.contains("fit-head"), "{line}");
+    assert!(!dir.join("out/fitted_scalp.ply").exists() && !dir.join("out/strands.hair").exists());
     // Importing again over the capture is refused.
     let line = error_line(&import(&dir, &[]));
     assert!(line.contains("not empty"), "{line}");
