@@ -304,12 +304,15 @@ mod tests {
 
     #[test]
     fn stages_parse_by_name_in_order() {
-        let names: Vec<Stage> = ["orient2d", "ORIENT3D", "partings", "direction", "init", "dr"]
+        let names: Vec<Stage> = ["head", "Masks", "orient2d", "ORIENT3D", "partings", "direction", "init", "dr"]
             .iter()
             .map(|s| s.parse().unwrap())
             .collect();
         assert_eq!(names, Stage::ALL.to_vec());
-        assert!(Stage::Init < Stage::Dr && Stage::Orient2d < Stage::Orient3d);
+        assert!(Stage::Init < Stage::Dr && Stage::Orient2d < Stage::Orient3d && Stage::Masks < Stage::Orient2d);
+        assert_eq!(Stage::FIRST, Stage::Head);
+        // Padded as a name in a table.
+        assert_eq!(format!("[{:>8}]", Stage::Dr), "[      dr]");
         let e = "mvs".parse::<Stage>().unwrap_err();
         assert!(e.to_string().contains("partings"), "{e}");
     }
