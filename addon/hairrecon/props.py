@@ -117,7 +117,7 @@ class HairreconSettings(bpy.types.PropertyGroup):
                             description="Custom curls turn left-handed from root to tip (off: right-handed)")
     stop_after: StringProperty(
         name="Stop After",
-        description="Advanced: stop the pipeline after this stage: orient2d, orient3d, direction, init (empty = run it all)",
+        description="Advanced: stop the pipeline after this stage: orient2d, orient3d, partings, direction, init (empty = run it all)",
     )
 
 
