@@ -94,7 +94,7 @@ fn a_colmap_model_imports_and_reconstruct_refuses_its_frame() {
         .unwrap();
     assert!(!rec.status.success());
     let err = String::from_utf8_lossy(&rec.stderr).into_owned();
-    let line = err.lines().filter(|l| !l.trim().is_empty()).next_back().unwrap_or_default();
+    let line = err.lines().rfind(|l| !l.trim().is_empty()).unwrap_or_default();
     assert!(line.starts_with("hairrecon: error: the head fit: "), "{err}");
     assert!(line.contains("raw_mesh.ply") && line.contains("to_canonical") && line.contains("fit-head"), "{line}");
     assert!(!dir.join("out/fitted_scalp.ply").exists() && !dir.join("out/strands.hair").exists());
