@@ -120,4 +120,13 @@ impl Capture {
             None => Ok(strands.clone()),
         }
     }
+
+    /// Strands in the frame of the capture's files, mapped to the capture's frame: the inverse of
+    /// [`Capture::to_file_frame`].
+    pub fn from_file_frame(&self, strands: &StrandSet) -> Result<StrandSet, crate::StrandError> {
+        match &self.file_frame {
+            Some(s) => transform_strands(strands, s),
+            None => Ok(strands.clone()),
+        }
+    }
 }

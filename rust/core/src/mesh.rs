@@ -10,13 +10,17 @@
 //! - inside tests by the sign of the angle-weighted pseudo-normal at the closest feature
 //!   (Bærentzen & Aanæs, "Signed distance computation using the angle weighted pseudonormal", 2005),
 //!   which is robust for closed meshes. For meshes with holes (a head cut at the neck) it is still
-//!   the right answer near the surface, which is where hair lives.
+//!   the right answer near the surface, which is where hair lives. Where faces fold over their
+//!   neighbours (a noisy photogrammetry mesh) the pseudo-normal can point the wrong way, and the
+//!   test at those triangles is a vote of the surface around the closest point instead ([`folds`]).
 //!
 //! A hand-written BVH keeps this crate small: we need three queries, all in f32 glam, and the
 //! collision crates we looked at (parry3d 0.31) bring their own math types.
 
 use glam::{Vec2, Vec3};
 use thiserror::Error;
+
+mod folds;
 
 /// Why a mesh could not be built.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -170,6 +174,11 @@ pub struct Bvh {
     boundary_vertex: Vec<bool>,
     /// Each vertex's first vertex at the same position (the key of the two tables above).
     weld: Vec<u32>,
+    /// Per triangle, whether a corner has a folded edge, where inside tests vote over the
+    /// neighbourhood (empty when no edge folds; see [`folds`]).
+    doubtful: Vec<bool>,
+    /// The radius of that vote (zero when nothing is doubtful).
+    vote_radius: f32,
 }
 
 const LEAF_SIZE: usize = 4;
@@ -259,7 +268,22 @@ impl Bvh {
                 boundary_vertex[b as usize] = true;
             }
         }
-        Self { mesh, nodes, order, vertex_pn, edge_pn, boundary_vertex, weld }
+        let doubtful = folds::doubtful_triangles(&mesh.triangles, &weld, &edge_pn);
+        let mut bvh =
+            Self { mesh, nodes, order, vertex_pn, edge_pn, boundary_vertex, weld, doubtful, vote_radius: 0.0 };
+        if !bvh.doubtful.is_empty() {
+            bvh.vote_radius = folds::VOTE_RADIUS_EDGES * folds::mean_edge(&bvh);
+        }
+        bvh
+    }
+
+    /// The fraction of triangles at a folded edge, whose inside tests vote over the neighbourhood.
+    pub fn doubtful_fraction(&self) -> f32 {
+        if self.doubtful.is_empty() {
+            0.0
+        } else {
+            self.doubtful.iter().filter(|d| **d).count() as f32 / self.doubtful.len() as f32
+        }
     }
 
     pub fn mesh(&self) -> &TriMesh {
@@ -361,6 +385,10 @@ impl Bvh {
         let cp = self.closest_point(p, max_dist)?;
         if self.on_boundary(&cp) {
             return Some(cp.distance);
+        }
+        if self.doubtful.get(cp.triangle as usize).copied().unwrap_or(false) {
+            let n = folds::net_normal(self, cp.point, self.vote_radius);
+            return Some(if (p - cp.point).dot(n) < 0.0 { -cp.distance } else { cp.distance });
         }
         let n = self.pseudo_normal(&cp);
         let s = if (p - cp.point).dot(n) < 0.0 { -1.0 } else { 1.0 };
@@ -651,5 +679,38 @@ mod tests {
             TriMesh::new(vec![Vec3::ZERO; 3], vec![[0, 1, 3]], None, None),
             Err(MeshError::IndexOutOfRange { .. })
         ));
+    }
+
+    /// Vertex noise of a quarter of the edge length folds faces (about 5% of the edges here); the
+    /// pseudo-normal alone then calls about 1% of points 2 cm outside "inside" (measured when this
+    /// test was written). The vote at doubtful triangles must call every one right.
+    #[test]
+    fn inside_tests_survive_folded_faces() {
+        let clean = sphere(0.1, 314, 157);
+        assert_eq!(Bvh::new(clean.clone()).doubtful_fraction(), 0.0, "a clean sphere has no folds");
+        let mut s = 99u32;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s as f32 / u32::MAX as f32).max(1e-9)
+        };
+        let mut gauss = || (-2.0 * rnd().ln()).sqrt() * (std::f32::consts::TAU * rnd()).cos();
+        let noisy: Vec<Vec3> =
+            clean.vertices.iter().map(|p| *p + 0.5e-3 * Vec3::new(gauss(), gauss(), gauss())).collect();
+        let bvh = Bvh::new(TriMesh::new(noisy, clean.triangles.clone(), None, None).unwrap());
+        assert!(bvh.doubtful_fraction() > 0.05, "the noise folds faces: {}", bvh.doubtful_fraction());
+        let mut wrong = Vec::new();
+        for dist in [0.003f32, 0.02, -0.003, -0.02] {
+            for _ in 0..3000 {
+                let dir = Vec3::new(gauss(), gauss(), gauss()).normalize();
+                let p = dir * (0.1 + dist);
+                let sd = bvh.signed_distance(p, 1.0).unwrap();
+                if sd.signum() != dist.signum() {
+                    wrong.push((p, dist, sd));
+                }
+            }
+        }
+        assert!(wrong.is_empty(), "{} of 12000 signs wrong, e.g. {:?}", wrong.len(), &wrong[..wrong.len().min(3)]);
     }
 }

@@ -321,15 +321,18 @@ fn an_imported_capture_with_its_frame_runs_in_the_canonical_one_and_writes_in_it
     let (a, b) = (f1(&ours.report), f1(&theirs.report));
     println!("F1 at 2 mm: imported {a:.2}, canonical {b:.2}");
     assert!((a - b).abs() < 1.0, "imported {a:.2} against canonical {b:.2}");
-    // strands.hair is in the capture's own frame: back in the canonical one it lies on the
-    // canonical run's strands.
-    let strands = hairrecon_core::read_strands(ours.strands.unwrap()).unwrap();
-    let back = hairrecon_core::similarity::transform_strands(&strands, &to_file.inverse()).unwrap();
-    let reference = hairrecon_core::read_strands(theirs.strands.unwrap()).unwrap();
-    let m =
-        hairrecon_core::metric::evaluate(&back, &reference, &hairrecon_core::metric::MetricOptions::default()).unwrap();
-    println!("imported run's strands against the canonical run's: {m:?}");
-    assert!(m.undirected[0].f1 > 90.0, "{m:?}");
+    // strands.hair and init_strands.hair are in the capture's own frame: back in the canonical one
+    // they lie on the canonical run's strands.
+    for (a, b) in [(ours.strands, theirs.strands), (ours.init_strands, theirs.init_strands)] {
+        let (a, b) = (a.unwrap(), b.unwrap());
+        let strands = hairrecon_core::read_strands(&a).unwrap();
+        let back = hairrecon_core::similarity::transform_strands(&strands, &to_file.inverse()).unwrap();
+        let reference = hairrecon_core::read_strands(&b).unwrap();
+        let opts = hairrecon_core::metric::MetricOptions::default();
+        let m = hairrecon_core::metric::evaluate(&back, &reference, &opts).unwrap();
+        println!("imported run's {} against the canonical run's: {m:?}", a.display());
+        assert!(m.undirected[0].f1 > 90.0, "{}: {m:?}", a.display());
+    }
     for c in [&cap, &canonical_cap] {
         let _ = std::fs::remove_dir_all(&c.dir);
     }

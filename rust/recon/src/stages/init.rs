@@ -10,7 +10,7 @@
 //! (the points moved onto their ringlets' axes, which the flow grew from). The guides stay whole
 //! (DR blends the children from them); the children are cut by the hull.
 
-use hairrecon_core::formats::{read_strands, write_strands};
+use hairrecon_core::formats::read_strands;
 use hairrecon_core::spatial::PointIndex;
 use hairrecon_core::StrandSet;
 use serde::{Deserialize, Serialize};
@@ -214,15 +214,19 @@ fn trim(
 
 impl InitOut {
     pub fn save(&self, ctx: &Context<'_>) -> Result<(), ReconError> {
-        write_strands(ctx.output(GUIDES), &self.guides)?;
-        write_strands(ctx.output(CHILDREN), &self.children)?;
+        // In the frame of the capture's files, as the final strands are.
+        ctx.write_result(GUIDES, &self.guides)?;
+        ctx.write_result(CHILDREN, &self.children)?;
         write_json(&ctx.output(INFO), &self.info)
     }
 
     pub fn load(ctx: &Context<'_>, from: Stage) -> Result<Self, ReconError> {
         let info_path = need(ctx, from, Stage::Init, INFO)?;
-        let guides = read_strands(need(ctx, from, Stage::Init, GUIDES)?)?;
-        let children = read_strands(need(ctx, from, Stage::Init, CHILDREN)?)?;
+        let read = |name| -> Result<StrandSet, ReconError> {
+            let s = read_strands(need(ctx, from, Stage::Init, name)?)?;
+            Ok(ctx.capture.from_file_frame(&s).map_err(hairrecon_core::FormatError::from)?)
+        };
+        let (guides, children) = (read(GUIDES)?, read(CHILDREN)?);
         let bad = |msg: String| ReconError::StageFile { stage: Stage::Init, path: info_path.clone(), msg };
         let text = std::fs::read_to_string(&info_path).map_err(|e| bad(e.to_string()))?;
         let info: InitInfo = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
