@@ -74,3 +74,74 @@ def expected_k(view: dict, height: int) -> np.ndarray:
     s = height / view["size"][1]
     cx, cy = cx - 0.5, cy - 0.5  # COLMAP's pixel centres -> hairrecon's
     return np.array([[s * fx, 0.0, s * (cx + 0.5) - 0.5], [0.0, s * fy, s * (cy + 0.5) - 0.5], [0.0, 0.0, 1.0]])
+
+
+def quaternion_from_rotation(r: np.ndarray) -> tuple[float, float, float, float]:
+    """COLMAP's (QW, QX, QY, QZ) of a rotation matrix (Hamilton, QW >= 0)."""
+    r = np.asarray(r, np.float64)
+    tr = np.trace(r)
+    if tr > 0:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        q = (0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s)
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+        v = [0.0, 0.0, 0.0]
+        v[i] = 0.25 * s
+        v[j] = (r[j, i] + r[i, j]) / s
+        v[k] = (r[k, i] + r[i, k]) / s
+        q = ((r[k, j] - r[j, k]) / s, *v)
+    q = np.array(q) / np.linalg.norm(q)
+    return tuple(float(x) for x in (q if q[0] >= 0 else -q))
+
+
+def rotation_from_quaternion(q) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def colmap_from_capture(capture: Path, root: Path) -> dict:
+    """The capture folder ``capture`` (pinhole views with photos, e.g. fit_fixture.write_capture) as a
+    COLMAP text model, as a photogrammetry project holds it: ``root/sparse`` (one PINHOLE camera per
+    image, world-to-camera poses), ``root/photos`` and ``root/mesh.ply`` (the raw mesh), nothing else
+    (no masks, head or scalp). Returns what :func:`write_colmap_model` returns."""
+    import json
+    import shutil
+
+    capture, root = Path(capture), Path(root)
+    spec = json.loads((capture / "capture.json").read_text())
+    sparse, photos = root / "sparse", root / "photos"
+    sparse.mkdir(parents=True, exist_ok=True)
+    photos.mkdir(parents=True, exist_ok=True)
+    cams = ["# CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]"]
+    imgs = ["# IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME", "# POINTS2D[] as (X Y POINT3D_ID)"]
+    views = {}
+    for i, v in enumerate(spec["views"], start=1):
+        k = np.asarray(v["K"], np.float64)
+        assert abs(k[0, 1]) < 1e-12, "COLMAP's PINHOLE has no skew"
+        # hairrecon puts the first pixel's centre at (0, 0), COLMAP at (0.5, 0.5)
+        fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2] + 0.5, k[1, 2] + 0.5
+        cams.append(f"{i} PINHOLE {v['width']} {v['height']} {fx!r} {fy!r} {cx!r} {cy!r}")
+        r, t = np.asarray(v["R"], np.float64), np.asarray(v["t"], np.float64)
+        q = quaternion_from_rotation(r)
+        name = Path(v["image"]).name
+        imgs.append(f"{i} {q[0]!r} {q[1]!r} {q[2]!r} {q[3]!r} {t[0]!r} {t[1]!r} {t[2]!r} {i} {name}")
+        imgs.append("")
+        shutil.copyfile(capture / v["image"], photos / name)
+        views[v["name"]] = {"colmap_k": [fx, fy, cx, cy], "R": r.tolist(), "t": t.tolist(),
+                            "size": [v["width"], v["height"]]}
+    (sparse / "cameras.txt").write_text("\n".join(cams) + "\n")
+    (sparse / "images.txt").write_text("\n".join(imgs) + "\n")
+    # one point seen by the first two images (a sparse model's points are not used by the import)
+    centre = np.mean([-np.asarray(v["R"]).T @ np.asarray(v["t"]) for v in spec["views"]], axis=0)
+    (sparse / "points3D.txt").write_text(
+        "# POINT3D_ID X Y Z R G B ERROR TRACK[]\n"
+        f"1 {centre[0]!r} {centre[1]!r} {centre[2]!r} 128 128 128 0.5 1 0 2 0\n"
+    )
+    shutil.copyfile(capture / spec["raw_mesh"], root / "mesh.ply")
+    return {"sparse": str(sparse), "images": str(photos), "mesh": str(root / "mesh.ply"), "views": views}

@@ -455,6 +455,142 @@ def test_import_colmap_builds_the_scene_and_refuses_bad_input(extension_zip, tmp
     assert again["result"] is None and again["unchanged"] and "not empty" in again["error"], again
 
 
+def point_triangle_distances(points, a, b, c) -> np.ndarray:
+    """Exact distance of each point to the nearest of the triangles (a, b, c) (Ericson, Real-Time Collision
+    Detection 5.1.5, vectorised): (N,) for points (N, 3) and corners (M, 3) each."""
+    out = np.empty(len(points))
+    ab, ac, bc = b - a, c - a, c - b
+    for i, p in enumerate(np.asarray(points, np.float64)):
+        ap, bp, cp = p - a, p - b, p - c
+        d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
+        d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
+        d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
+        va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            regions = [
+                (d1 <= 0) & (d2 <= 0),  # vertex a
+                (d3 >= 0) & (d4 <= d3),  # vertex b
+                (vc <= 0) & (d1 >= 0) & (d3 <= 0),  # edge ab
+                (d6 >= 0) & (d5 <= d6),  # vertex c
+                (vb <= 0) & (d2 >= 0) & (d6 <= 0),  # edge ac
+                (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),  # edge bc
+            ]
+            t_ab = (d1 / (d1 - d3))[:, None]
+            t_ac = (d2 / (d2 - d6))[:, None]
+            t_bc = ((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None]
+            denom = va + vb + vc
+            inside = a + ab * (vb / denom)[:, None] + ac * (vc / denom)[:, None]
+            closest = np.select([r[:, None] for r in regions],
+                                [a, b, a + t_ab * ab, c, a + t_ac * ac, b + t_bc * bc], inside)
+        out[i] = np.linalg.norm(closest - p, axis=1).min()
+    return out
+
+
+def test_colmap_import_fit_head_and_reconstruct_in_one_flow(extension_zip, tmp_path):
+    """A user's photogrammetry project in Blender, in a fresh scene: File > Import > COLMAP Model (hairrecon)
+    -> Fit Head -> Reconstruct Hair. The project: the bundled head with a hair shell (its scalp 8 mm
+    out) moved by a similarity (scale 40, turned, offset; fit_fixture.py) as the raw mesh, 12 cameras
+    around it with photos of it (striped brown hair, skin, a checkered backdrop), a COLMAP text model;
+    no masks, no head, no scalp. Every step finishes; the hair is bound to the Fitted Scalp and its
+    roots lie on it in the scene's frame (scene units / 40 = metres); a run whose photo went missing
+    is one error naming the camera and the file, and a cancelled run, both leave the scene as it was."""
+    import time
+
+    from colmap_fixture import colmap_from_capture, expected_k
+    from fit_fixture import SCALE, write_capture
+
+    t0 = time.monotonic()
+    truth = write_capture(hairrecon, tmp_path / "capture", raw="shell", photos="render", views=12, lift=0.3, height=300)
+    model = colmap_from_capture(tmp_path / "capture", tmp_path / "project")
+    fixture_seconds = time.monotonic() - t0
+    height = 240  # working photos below the photos' 300 px
+    settings = dict(guides=32, children=128, dr=True, dr_iters_guides=2, dr_iters_children=1)
+    work = tmp_path / "work"
+    work.mkdir()
+    t0 = time.monotonic()
+    out = run_worker("colmap_flow", tmp_path / "user", timeout=600, zip=str(extension_zip), model=model,
+                     capture=str(tmp_path / "imported"), workdir=str(work), height=height, **settings)
+    worker_seconds = time.monotonic() - t0
+
+    # File > Import > COLMAP Model: the cameras with their photos and the raw mesh, nothing else
+    imp = out["import"]
+    assert imp["result"] == ["FINISHED"] and imp["error"] is None, imp["error"]
+    names = sorted(model["views"])
+    assert imp["new"]["cameras"] == names and imp["new"]["meshes"] == ["raw_mesh"], imp["new"]
+    assert imp["new"]["images"] == sorted(f"{n}.png" for n in names), imp["new"]
+    assert sorted(imp["new"]["objects"]) == sorted(names + ["raw_mesh"]), imp["new"]
+    panel = out["panel_after_import"]
+    assert panel["cameras"] == names and len(names) == 12
+    raw = hairrecon.read_mesh(model["mesh"])
+    assert panel["raw_mesh"] and panel["raw_mesh_faces"] == len(raw["triangles"])
+    assert panel["scalp"] is None and panel["head"] is None and panel["mask_folder"] == "", panel
+    assert panel["resolution"] == [height * 2 // 3, height, 100], panel
+    spec = json.loads((tmp_path / "imported" / "capture.json").read_text())
+    assert spec["frame"] == "imported" and "scalp_mesh" not in spec and "head_mesh" not in spec
+    for v in spec["views"]:
+        assert "mask" not in v
+        np.testing.assert_allclose(np.array(v["K"]), expected_k(model["views"][v["name"]], height), atol=1e-4)
+        np.testing.assert_allclose(np.array(v["R"]), np.array(model["views"][v["name"]]["R"]), atol=1e-6)
+        np.testing.assert_allclose(np.array(v["t"]), np.array(model["views"][v["name"]]["t"]), atol=1e-4)
+
+    # Fit Head: the fitted head and scalp, which the panel now uses
+    fit = out["fit"]
+    assert fit["result"] == ["FINISHED"] and fit["error"] is None, fit["error"]
+    assert fit["new"]["objects"] == ["Fitted Head", "Fitted Scalp"], fit["new"]
+    assert out["panel_after_fit"] == {"source": "OBJECT", "scalp": "Fitted Scalp", "head": "Fitted Head"}
+
+    # a photo gone from the capture folder: one error naming the camera and the file, nothing changed
+    miss = out["missing_photo"]
+    assert miss["result"] is None and miss["unchanged"], miss
+    err = miss["error"] or ""
+    assert err.strip().count("\n") == 0, err
+    assert f"camera {miss['camera']!r}" in err and miss["photo"] in err and "cannot be read" in err, err
+    assert miss["size_after_reload"] == [height * 2 // 3, height], miss
+
+    # a cancelled run: the library's Cancelled, nothing changed, its temporary folder gone
+    cancel = out["cancel"]
+    assert cancel["raised"] and cancel["raised"].startswith("Cancelled"), cancel
+    assert cancel["unchanged"] and cancel["temp_removed"] and cancel["stop_seconds"] < 30, cancel
+
+    # Reconstruct Hair: guides and strands, bound to the Fitted Scalp through its UVs
+    rec = out["reconstruct"]
+    assert rec["result"] == ["FINISHED"] and rec["error"] is None, rec["error"]
+    assert not any(rec["gone"].values()), rec["gone"]
+    assert len(rec["new"]["objects"]) == 2 and len(rec["new"]["hair_curves"]) == 2, rec["new"]
+    by_name = {c["name"]: c for c in out["curves"]}
+    assert sorted(by_name) == ["Fitted Scalp Hair", "Fitted Scalp Hair Guides"], sorted(by_name)
+    assert by_name["Fitted Scalp Hair Guides"]["curves"] == settings["guides"]
+    assert by_name["Fitted Scalp Hair"]["curves"] == settings["children"]
+    a, b, c = (np.array(out["scalp_vertices"])[np.array(out["scalp_triangles"])][:, k] for k in range(3))
+    ta, tb, tc = (truth["scalp"][0].astype(np.float64)[truth["scalp"][1].astype(np.int64)][:, k] for k in range(3))
+    for name, cr in by_name.items():
+        assert cr["surface"] == "Fitted Scalp" and cr["uv_map_exists"] and cr["uv_attr"] == ["CURVE", "FLOAT2"], cr
+        assert cr["uv_outside_map_max"] < 1e-6, cr  # every UV on a triangle of the scalp's UV map
+        # the UV's surface point is the root's closest point, within 0.01 mm (curves_report's "_mm" values
+        # are scene units x 1000 here: / SCALE gives mm)
+        assert cr["uv_back_to_closest_max_mm"] / SCALE < 0.01, cr
+        roots = np.array(out["roots"][name])
+        # exact distances to the Fitted Scalp's triangles (and to the true scalp), in metres
+        d = point_triangle_distances(roots, a, b, c) / SCALE
+        d_truth = point_triangle_distances(roots, ta, tb, tc) / SCALE
+        lengths = np.array(out["lengths"][name]) / SCALE
+        # the worker's BVH distances (float32) agree with the exact ones, for the roots and for the tips
+        # (the tips lie in the hair, millimetres off the scalp: a distance that says 0 everywhere fails here)
+        assert abs(cr["root_dist_max_mm"] / 1e3 / SCALE - d.max()) < 1e-6, (cr["root_dist_max_mm"], d.max())
+        tips = point_triangle_distances(np.array(out["tips"][name]), a, b, c)
+        print(f"{name}: {len(roots)} roots to the Fitted Scalp: max {1e6 * d.max():.4f} µm, mean {1e6 * d.mean():.4f} µm; "
+              f"to the true scalp: max {1e6 * d_truth.max():.2f} µm; strand length median {1e3 * np.median(lengths):.0f} mm, "
+              f"tips up to {1e3 * tips.max() / SCALE:.1f} mm off the scalp")
+        assert tips.max() / SCALE > 0.005, tips.max() / SCALE
+        assert np.abs(tips - np.array(out["tip_dist_bvh"][name])).max() < 1e-4
+        assert d.max() < 0.0005, d.max()
+        assert d_truth.max() < 0.001, d_truth.max()
+        # strands of a head's hair in metres: neither canonical metres read as scene units nor the reverse
+        assert 0.03 < np.median(lengths) < 0.4, np.median(lengths)
+    print(f"one flow: fixture {fixture_seconds:.1f} s, Blender worker {worker_seconds:.1f} s (import "
+          f"{imp['seconds']:.1f} s, fit {fit['seconds']:.1f} s, reconstruct {rec['seconds']:.1f} s)")
+
+
 def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture, tmp_path):
     """The batch script on the saved scene, with the scalp given on the command line as a vertex
     group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it)."""

@@ -98,7 +98,8 @@ fn grow_from(
     // Beside partings the points above the skin go: the partings decide the hair there.
     let cleared = scalp.partings().map(|p| clear_points(pts, scalp, p, cfg.parting.clear_height));
     let pts = cleared.as_ref().map_or(pts, |c| &c.0);
-    let (flow, laplace) = solve_flow(ctx.raw()?, ctx.inner()?, scalp, pts, &cfg.laplace, ctx.progress)?;
+    let outer = ctx.flow_surface(cfg.laplace.outer_smoothing)?;
+    let (flow, laplace) = solve_flow(outer, ctx.inner()?, scalp, pts, &cfg.laplace, ctx.progress)?;
     let trace = (cfg.grow.trace_radius > 0.0).then(|| PointIndex::new(pts.positions.clone(), pts.directions.clone()));
     let (guides, grow) = grow_guides(&flow, trace.as_ref(), roots.0, &cfg.grow, ctx.progress)?;
     let (guides, smooth) = smooth_guides(&guides, trace.as_ref(), Some(&flow), &cfg.grow);
