@@ -9,6 +9,10 @@
 //! surface's own orientation. (The generalized winding number of Jacobson et al. 2013 cancels
 //! folds too, but it is global: on an open mesh with many holes, as fused scans are, it calls
 //! large regions outside the surface "inside".)
+//!
+//! Only a Bvh made by [`Bvh::with_fold_vote`] votes, and only at doubtful triangles (a corner with
+//! a folded edge): smooth meshes keep the exact pseudo-normal test, and modelled meshes (a head's
+//! sharp creases fold too) keep it everywhere.
 
 use glam::Vec3;
 

@@ -106,7 +106,7 @@ impl<'a> Context<'a> {
     /// The raw mesh (the hair's outer surface), with its BVH.
     pub fn raw(&self) -> Result<&Bvh, ReconError> {
         if self.raw.get().is_none() {
-            let _ = self.raw.set(Bvh::new(self.capture.read_mesh(&self.capture.raw_mesh)?));
+            let _ = self.raw.set(Bvh::with_fold_vote(self.capture.read_mesh(&self.capture.raw_mesh)?));
         }
         Ok(self.raw.get().expect("set above"))
     }
@@ -121,7 +121,7 @@ impl<'a> Context<'a> {
         if self.flow_surface.get().is_none() {
             self.progress.update("init", 0.0, "smoothing the raw mesh");
             let mesh = crate::raw_mesh::surface::smoothed(self.raw()?.mesh(), pairs);
-            let _ = self.flow_surface.set((pairs, Bvh::new(mesh)));
+            let _ = self.flow_surface.set((pairs, Bvh::with_fold_vote(mesh)));
         }
         let (made_with, bvh) = self.flow_surface.get().expect("set above");
         // One run has one configuration: the count never changes within it.
