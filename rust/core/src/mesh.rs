@@ -110,6 +110,25 @@ impl TriMesh {
         n.into_iter().map(|v| v.normalize_or_zero()).collect()
     }
 
+    /// The distinct vertex positions (bit for bit) in first-seen order, and each vertex's index into
+    /// them: a mesh split at UV seams or written per face becomes one surface.
+    pub fn weld_positions(&self) -> (Vec<Vec3>, Vec<u32>) {
+        let mut index: std::collections::HashMap<[u32; 3], u32> =
+            std::collections::HashMap::with_capacity(self.vertices.len());
+        let mut positions = Vec::new();
+        let remap = self
+            .vertices
+            .iter()
+            .map(|p| {
+                *index.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
+                    positions.push(*p);
+                    positions.len() as u32 - 1
+                })
+            })
+            .collect();
+        (positions, remap)
+    }
+
     /// Axis-aligned bounding box of the vertices.
     pub fn bbox(&self) -> (Vec3, Vec3) {
         let first = self.vertices.first().copied().unwrap_or(Vec3::ZERO);

@@ -7,8 +7,6 @@
 //! points lower than [`FLOOR_MARGIN`] above the cut are not tested, since there the sign is
 //! meaningless and real hair hangs freely past the cut.
 
-use std::collections::HashMap;
-
 use glam::Vec3;
 use hairrecon_core::{Bvh, TriMesh};
 
@@ -25,18 +23,7 @@ pub struct HeadCollider {
 impl HeadCollider {
     /// Welds `head` and builds its BVH.
     pub fn new(head: &TriMesh) -> Self {
-        let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(head.vertices.len());
-        let mut vertices = Vec::new();
-        let remap: Vec<u32> = head
-            .vertices
-            .iter()
-            .map(|p| {
-                *index.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
-                    vertices.push(*p);
-                    vertices.len() as u32 - 1
-                })
-            })
-            .collect();
+        let (vertices, remap) = head.weld_positions();
         let triangles: Vec<[u32; 3]> = head
             .triangles
             .iter()

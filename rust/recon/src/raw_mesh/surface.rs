@@ -206,18 +206,7 @@ pub fn taubin_smooth(vertices: &mut [Vec3], triangles: &[[u32; 3]], iterations: 
 /// vertices at one position moved as one (a mesh split at UV seams does not tear). The triangles,
 /// the vertex order and the UVs are kept; vertex normals are dropped.
 pub fn smoothed(mesh: &TriMesh, pairs: u32) -> TriMesh {
-    let mut first: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
-    let mut welded: Vec<Vec3> = Vec::new();
-    let weld: Vec<u32> = mesh
-        .vertices
-        .iter()
-        .map(|p| {
-            *first.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
-                welded.push(*p);
-                welded.len() as u32 - 1
-            })
-        })
-        .collect();
+    let (mut welded, weld) = mesh.weld_positions();
     let triangles: Vec<[u32; 3]> = mesh.triangles.iter().map(|t| t.map(|v| weld[v as usize])).collect();
     taubin_smooth(&mut welded, &triangles, pairs);
     let vertices = weld.iter().map(|&w| welded[w as usize]).collect();
