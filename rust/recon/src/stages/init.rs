@@ -12,6 +12,7 @@
 
 use hairrecon_core::formats::read_strands;
 use hairrecon_core::spatial::PointIndex;
+use hairrecon_core::Bvh;
 use hairrecon_core::StrandSet;
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +27,7 @@ use crate::laplace::{solve_flow, FlowField, LaplaceStats};
 use crate::orient2d::OrientationMap;
 use crate::oriented_points::OrientedPoints;
 use crate::parting::clear_points;
+use crate::raw_mesh::surface::smoothed;
 use crate::roots::{sample_roots, Roots, Scalp};
 use crate::stages::{need, write_json, Context};
 
@@ -91,6 +93,7 @@ struct Grown {
 fn grow_from(
     ctx: &Context<'_>,
     cfg: &ReconstructConfig,
+    outer: &Bvh,
     scalp: &Scalp,
     roots: (&Roots, &Roots),
     pts: &OrientedPoints,
@@ -98,7 +101,6 @@ fn grow_from(
     // Beside partings the points above the skin go: the partings decide the hair there.
     let cleared = scalp.partings().map(|p| clear_points(pts, scalp, p, cfg.parting.clear_height));
     let pts = cleared.as_ref().map_or(pts, |c| &c.0);
-    let outer = ctx.flow_surface(cfg.laplace.outer_smoothing)?;
     let (flow, laplace) = solve_flow(outer, ctx.inner()?, scalp, pts, &cfg.laplace, ctx.progress)?;
     let trace = (cfg.grow.trace_radius > 0.0).then(|| PointIndex::new(pts.positions.clone(), pts.directions.clone()));
     let (guides, grow) = grow_guides(&flow, trace.as_ref(), roots.0, &cfg.grow, ctx.progress)?;
@@ -123,6 +125,18 @@ pub fn run(
     let child_roots = sample_roots(scalp, cfg.children.max(1), cfg.seed.wrapping_add(1)).map_err(scalp_err)?;
     guide_roots.to_points().save_ply(&ctx.output("roots.ply"))?;
     let roots = (&guide_roots, &child_roots);
+    // The flow's outer surface (see `LaplaceParams::outer_smoothing`): built once for every growth
+    // of this stage, and dropped with it.
+    let smoothed = if cfg.strand_init && cfg.laplace.outer_smoothing > 0 {
+        progress.update("init", 0.0, "smoothing the raw mesh");
+        Some(Bvh::with_fold_vote(smoothed(ctx.raw()?.mesh(), cfg.laplace.outer_smoothing)))
+    } else {
+        None
+    };
+    let outer = match &smoothed {
+        Some(b) => b,
+        None => ctx.raw()?,
+    };
     let mut stats = InitStats::default();
     let mut seen_axes = None;
     let (guides, children, curl) = if cfg.strand_init {
@@ -133,7 +147,7 @@ pub fn run(
                 let targets = || -> Result<DrTargets, ReconError> {
                     Ok(DrTargets::from_capture(ctx.capture, maps, Some(ctx.inner()?), progress)?)
                 };
-                let grow_children = |pts: &OrientedPoints| Ok(grow_from(ctx, cfg, scalp, roots, pts)?.children);
+                let grow_children = |pts: &OrientedPoints| Ok(grow_from(ctx, cfg, outer, scalp, roots, pts)?.children);
                 let (c, report) = choose(directed, ctx.raw()?.mesh(), cfg, &targets, &grow_children, progress)?;
                 stats.curl_auto = Some(report);
                 c
@@ -157,7 +171,7 @@ pub fn run(
                 Some(axes)
             }
         };
-        let g = grow_from(ctx, cfg, scalp, roots, axes.as_ref().unwrap_or(directed))?;
+        let g = grow_from(ctx, cfg, outer, scalp, roots, axes.as_ref().unwrap_or(directed))?;
         g.flow.save(&ctx.output("flow.bin"))?;
         (stats.parting_points_cleared, stats.laplace, stats.grow, stats.smooth) =
             (g.cleared, Some(g.laplace), Some(g.grow), Some(g.smooth));

@@ -51,8 +51,6 @@ pub struct Context<'a> {
     /// The files written since [`Context::take_written`] was last called, relative to `out_dir`.
     written: RefCell<Vec<String>>,
     raw: OnceCell<Bvh>,
-    /// The raw mesh smoothed for the flow, with the number of smoothing pairs.
-    flow_surface: OnceCell<(u32, Bvh)>,
     inner: OnceCell<Bvh>,
 }
 
@@ -64,15 +62,7 @@ impl std::fmt::Debug for Context<'_> {
 
 impl<'a> Context<'a> {
     pub fn new(capture: &'a Capture, out_dir: &'a Path, progress: &'a dyn Progress) -> Self {
-        Self {
-            capture,
-            out_dir,
-            progress,
-            written: RefCell::default(),
-            raw: OnceCell::new(),
-            flow_surface: OnceCell::new(),
-            inner: OnceCell::new(),
-        }
+        Self { capture, out_dir, progress, written: RefCell::default(), raw: OnceCell::new(), inner: OnceCell::new() }
     }
 
     /// A file in the output folder.
@@ -109,24 +99,6 @@ impl<'a> Context<'a> {
             let _ = self.raw.set(Bvh::with_fold_vote(self.capture.read_mesh(&self.capture.raw_mesh)?));
         }
         Ok(self.raw.get().expect("set above"))
-    }
-
-    /// The raw mesh Taubin-smoothed by `pairs` pairs of steps (see
-    /// [`crate::laplace::LaplaceParams::outer_smoothing`]): the outer surface the flow and the growth
-    /// read. The raw mesh itself when `pairs` is 0.
-    pub fn flow_surface(&self, pairs: u32) -> Result<&Bvh, ReconError> {
-        if pairs == 0 {
-            return self.raw();
-        }
-        if self.flow_surface.get().is_none() {
-            self.progress.update("init", 0.0, "smoothing the raw mesh");
-            let mesh = crate::raw_mesh::surface::smoothed(self.raw()?.mesh(), pairs);
-            let _ = self.flow_surface.set((pairs, Bvh::with_fold_vote(mesh)));
-        }
-        let (made_with, bvh) = self.flow_surface.get().expect("set above");
-        // One run has one configuration: the count never changes within it.
-        debug_assert_eq!(*made_with, pairs);
-        Ok(bvh)
     }
 
     /// The scalp mesh's path.
