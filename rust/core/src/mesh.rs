@@ -12,7 +12,7 @@
 //!   which is robust for closed meshes. For meshes with holes (a head cut at the neck) it is still
 //!   the right answer near the surface, which is where hair lives. Where faces fold over their
 //!   neighbours (a noisy photogrammetry mesh) the pseudo-normal can point the wrong way, and the
-//!   test at those triangles is a vote of the surface around the closest point instead ([`folds`]).
+//!   test at those triangles is a vote of the surface around the closest point instead (`mesh/folds.rs`).
 //!
 //! A hand-written BVH keeps this crate small: we need three queries, all in f32 glam, and the
 //! collision crates we looked at (parry3d 0.31) bring their own math types.
@@ -194,7 +194,7 @@ pub struct Bvh {
     /// Each vertex's first vertex at the same position (the key of the two tables above).
     weld: Vec<u32>,
     /// Per triangle, whether a corner has a folded edge, where inside tests vote over the
-    /// neighbourhood (empty when no edge folds; see [`folds`]).
+    /// neighbourhood (empty when no edge folds; see `mesh/folds.rs`).
     doubtful: Vec<bool>,
     /// The radius of that vote (zero when nothing is doubtful).
     vote_radius: f32,
@@ -292,7 +292,7 @@ impl Bvh {
 
     /// [`Bvh::new`] for a measured surface (a photogrammetry or fused mesh): where its faces fold
     /// over each other, inside tests vote over the surface around the closest point instead of
-    /// trusting the pseudo-normal there ([`folds`]). Not for modelled meshes: a head's sharp creases
+    /// trusting the pseudo-normal there (`mesh/folds.rs`). Not for modelled meshes: a head's sharp creases
     /// (the ears, the nostrils) fold by more than 90° too, and the pseudo-normal is exact there.
     pub fn with_fold_vote(mesh: TriMesh) -> Self {
         let mut bvh = Self::new(mesh);
