@@ -53,6 +53,16 @@ pub fn eval(a: EvalArgs) -> CmdResult {
     }
     let mut pred = read_strands(&a.pred)?;
     let mut gt = read_strands(&a.gt)?;
+    for (path, set, side) in [(&a.pred, &pred, "--pred"), (&a.gt, &gt, "--gt")] {
+        if set.num_strands() == 0 {
+            return Err(format!(
+                "{side} {} holds no strands: there is nothing to score (a score of 0 would hide it); \
+                 check that the run that wrote it finished (its report.json)",
+                path.display()
+            )
+            .into());
+        }
+    }
     if let Some(path) = &a.frame {
         let s = read_frame(path)?;
         pred = transform_strands(&pred, &s).map_err(|e| format!("{}: {e}", a.pred.display()))?;

@@ -99,6 +99,17 @@ fn errors_are_one_clear_line_and_non_zero() {
         assert_eq!(err.trim().lines().count(), 1, "{err}");
         assert!(err.contains("hairrecon: error:") && err.contains(what), "{err}");
     }
+    // A file of no strands (a valid file) is refused on either side, naming it: no silent 0.
+    let empty = d.join("empty.hair");
+    write_strands(&empty, &StrandSet::new(Vec::new(), Vec::new()).unwrap()).unwrap();
+    let some = d.join("some.hair");
+    write_strands(&some, &parallel(Vec3::ZERO)).unwrap();
+    for (pred, gt, side) in [(&empty, &some, "--pred"), (&some, &empty, "--gt")] {
+        let out = Command::new(bin()).args(["eval", "--pred"]).arg(pred).arg("--gt").arg(gt).output().unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(&format!("{side} ")) && err.contains("empty.hair") && err.contains("no strands"), "{err}");
+    }
     let out = Command::new(bin()).args(["convert"]).arg(&bad).arg(d.join("out.xyz")).output().unwrap();
     assert!(!out.status.success());
     assert!(!d.join("out.xyz").exists(), "no output file on failure");

@@ -62,6 +62,11 @@ pub enum CaptureError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("{path} is not a valid capture.json: {source}")]
     Json { path: PathBuf, source: serde_json::Error },
+    #[error(
+        "{path} is not a capture: give a capture folder (the one holding capture.json) or its capture.json \
+         ({why})"
+    )]
+    NotACapture { path: PathBuf, why: &'static str },
     #[error("{path}: unsupported capture version {found} (this hairrecon reads version {CAPTURE_VERSION})")]
     Version { path: PathBuf, found: u32 },
     #[error(
@@ -75,10 +80,11 @@ pub enum CaptureError {
     Convention { path: PathBuf, found: String },
     #[error("{path}: the capture has no views; list at least one calibrated view")]
     NoViews { path: PathBuf },
-    #[error("view {view:?}: its {what} file {file} does not exist")]
-    MissingFile { view: String, what: &'static str, file: PathBuf },
-    #[error("the capture's {what} file {file} does not exist")]
-    MissingMesh { what: &'static str, file: PathBuf },
+    /// `problem` says what is there instead of a file ([`not_a_file`]).
+    #[error("view {view:?}: its {what} file {file} {problem}")]
+    MissingFile { view: String, what: &'static str, file: PathBuf, problem: &'static str },
+    #[error("the capture's {what} file {file} {problem}")]
+    MissingMesh { what: &'static str, file: PathBuf, problem: &'static str },
     #[error("view {view:?}: {file} is {got_w}x{got_h} pixels but capture.json says {width}x{height}")]
     SizeMismatch { view: String, file: PathBuf, width: u32, height: u32, got_w: u32, got_h: u32 },
     #[error("view {view:?}: cannot read the image {file}: {msg}")]
@@ -274,9 +280,28 @@ impl Capture {
     fn load_with(path: &Path, outside_paths: bool) -> Result<Self, CaptureError> {
         let json = if path.is_dir() { path.join("capture.json") } else { path.to_path_buf() };
         let dir = json.parent().map(Path::to_path_buf).unwrap_or_default();
-        let text = std::fs::read_to_string(&json).map_err(|source| CaptureError::Io { path: json.clone(), source })?;
-        let spec: CaptureSpec =
-            serde_json::from_str(&text).map_err(|source| CaptureError::Json { path: json.clone(), source })?;
+        if path.is_dir() && !json.exists() {
+            return Err(CaptureError::NotACapture { path: path.into(), why: "the folder holds no capture.json" });
+        }
+        if let Some(why) = not_a_file(&json).filter(|_| json.exists()) {
+            return Err(CaptureError::NotACapture { path: json, why });
+        }
+        let bytes = std::fs::read(&json).map_err(|source| CaptureError::Io { path: json.clone(), source })?;
+        let named_json = json.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+        let text = match String::from_utf8(bytes) {
+            Ok(text) => text,
+            Err(_) if !named_json => {
+                return Err(CaptureError::NotACapture { path: json, why: "it is a binary file, not JSON" })
+            }
+            Err(e) => String::from_utf8_lossy(e.as_bytes()).into_owned(),
+        };
+        let spec: CaptureSpec = serde_json::from_str(&text).map_err(|source| {
+            if named_json || text.trim_start().starts_with('{') {
+                CaptureError::Json { path: json.clone(), source }
+            } else {
+                CaptureError::NotACapture { path: json.clone(), why: "it is not a JSON file" }
+            }
+        })?;
         if !outside_paths {
             spec.check_paths_inside(&json)?;
         }
@@ -300,21 +325,24 @@ impl Capture {
             let gt_depth = v.gt_depth.map(|p| dir.join(p));
             for (what, p) in [("gt_orientation", &gt_orientation), ("gt_depth", &gt_depth)] {
                 if let Some(p) = p {
-                    if !p.is_file() {
-                        return Err(CaptureError::MissingFile { view: v.name.clone(), what, file: p.clone() });
+                    if let Some(problem) = not_a_file(p) {
+                        return Err(CaptureError::MissingFile { view: v.name.clone(), what, file: p.clone(), problem });
                     }
                 }
             }
             views.push(View { name: v.name, camera, image, mask, gt_orientation, gt_depth });
         }
         let raw_mesh = dir.join(&spec.raw_mesh);
-        if !raw_mesh.is_file() {
-            return Err(CaptureError::MissingMesh { what: "raw_mesh", file: raw_mesh });
+        if let Some(problem) = not_a_file(&raw_mesh) {
+            return Err(CaptureError::MissingMesh { what: "raw_mesh", file: raw_mesh, problem });
         }
         let opt = |what: &'static str, p: Option<PathBuf>| -> Result<Option<PathBuf>, CaptureError> {
             match p.map(|p| dir.join(p)) {
-                Some(f) if !f.is_file() => Err(CaptureError::MissingMesh { what, file: f }),
-                other => Ok(other),
+                Some(f) => match not_a_file(&f) {
+                    Some(problem) => Err(CaptureError::MissingMesh { what, file: f, problem }),
+                    None => Ok(Some(f)),
+                },
+                None => Ok(None),
             }
         };
         Ok(Self {
@@ -530,8 +558,8 @@ fn check_unknown_fields<T: Serialize>(input: &serde_json::Value, parsed: &T) -> 
 }
 
 fn check_image(view: &str, what: &'static str, file: &Path, width: u32, height: u32) -> Result<(), CaptureError> {
-    if !file.is_file() {
-        return Err(CaptureError::MissingFile { view: view.into(), what, file: file.into() });
+    if let Some(problem) = not_a_file(file) {
+        return Err(CaptureError::MissingFile { view: view.into(), what, file: file.into(), problem });
     }
     let (got_w, got_h) = image::image_dimensions(file).map_err(|e| CaptureError::BadImage {
         view: view.into(),
@@ -542,6 +570,18 @@ fn check_image(view: &str, what: &'static str, file: &Path, width: u32, height: 
         return Err(CaptureError::SizeMismatch { view: view.into(), file: file.into(), width, height, got_w, got_h });
     }
     Ok(())
+}
+
+/// What is at `path` when it is not a regular file (following links), for an error message.
+pub fn not_a_file(path: &Path) -> Option<&'static str> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => None,
+        Ok(m) if m.is_dir() => Some("is a folder, not a file"),
+        Ok(_) => Some("is not a regular file (a pipe, socket or device); give a file"),
+        Err(_) if path.symlink_metadata().is_ok() => Some("is a link to nothing (a broken symbolic link)"),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some("does not exist"),
+        Err(_) => Some("cannot be read (check its permissions)"),
+    }
 }
 
 /// Whether a view name can be a file name in any folder: stages write `<name>.exr` and
@@ -663,6 +703,25 @@ mod tests {
         s.raw_mesh = "../raw_mesh.ply".into();
         assert!(matches!(load(&dir, &s), Err(CaptureError::OutsidePath { .. })));
         let _ = std::fs::remove_file(outside);
+
+        // Files where a file belongs, and a capture where a capture belongs: a folder or a pipe as an
+        // image, a folder without capture.json, a strand file given as the capture.
+        let mut s = spec();
+        std::fs::create_dir_all(dir.join("images/folder.png")).unwrap();
+        s.views[0].image = "images/folder.png".into();
+        let e = load(&dir, &s).unwrap_err().to_string();
+        assert!(e.contains("folder.png is a folder, not a file"), "{e}");
+        let fifo = dir.join("images/pipe.png");
+        if std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            s.views[0].image = "images/pipe.png".into();
+            let e = load(&dir, &s).unwrap_err().to_string();
+            assert!(e.contains("pipe.png is not a regular file"), "{e}");
+        }
+        let e = Capture::load(dir.join("images")).unwrap_err().to_string();
+        assert!(e.contains("is not a capture") && e.contains("holds no capture.json"), "{e}");
+        std::fs::write(dir.join("strands.hair"), b"HAIR\x02\x00\x00\x00\xff\xfe").unwrap();
+        let e = Capture::load(dir.join("strands.hair")).unwrap_err().to_string();
+        assert!(e.contains("strands.hair is not a capture") && e.contains("binary file"), "{e}");
 
         // NaN cannot be written as JSON; a null where a number belongs is a parse error.
         std::fs::write(dir.join("capture.json"), "{\"version\": 1, \"views\": [}").unwrap();

@@ -147,13 +147,35 @@ fn decode(bytes: &[u8]) -> Result<Decoded> {
     }
 }
 
+/// The most float samples an OpenEXR file read by this module may hold over all its layers and
+/// channels (480 MB as `f32`, the same as [`MAX_PIXELS`] of float RGB), checked from the header.
+pub const MAX_EXR_SAMPLES: u64 = 3 * MAX_PIXELS;
+
+/// Checks an OpenEXR file's header against [`MAX_PIXELS`] per layer and [`MAX_EXR_SAMPLES`] in all,
+/// before the decoder allocates what the header claims.
+fn check_exr_header(bytes: &[u8]) -> Result<()> {
+    let meta = guarded(|| {
+        exr::meta::MetaData::read_from_buffered(IoCursor::new(bytes), false)
+            .map_err(|e| image_err(format!("cannot read the OpenEXR header: {e}")))
+    })?;
+    let mut samples = 0u64;
+    for h in &meta.headers {
+        let (w, hh) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
+        check_pixels(w, hh)?;
+        samples = samples.saturating_add(w.saturating_mul(hh).saturating_mul(h.channels.list.len() as u64));
+    }
+    if samples > MAX_EXR_SAMPLES {
+        return Err(image_err(format!(
+            "the OpenEXR file holds {samples} samples over its layers and channels, more than the \
+             {MAX_EXR_SAMPLES} this reads; write fewer or smaller layers"
+        )));
+    }
+    Ok(())
+}
+
 fn decode_exr(bytes: &[u8]) -> Result<Decoded> {
     use exr::prelude::{read, ReadChannels, ReadLayers};
-    let meta = exr::meta::MetaData::read_from_buffered(IoCursor::new(bytes), false)
-        .map_err(|e| image_err(format!("cannot read the OpenEXR header: {e}")))?;
-    for h in &meta.headers {
-        check_pixels(h.layer_size.width() as u64, h.layer_size.height() as u64)?;
-    }
+    check_exr_header(bytes)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -514,6 +536,7 @@ pub fn read_exr_channels_bytes(bytes: &[u8]) -> Result<ExrChannels> {
             FormatErrorKind::BadMagic { format: "PNG or OpenEXR", expected: "\\x89PNG or v/1\\x01", found }.into()
         );
     }
+    check_exr_header(bytes)?;
     guarded(|| {
         use exr::prelude::{read, ReadChannels, ReadLayers};
         let image = read()

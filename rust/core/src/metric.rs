@@ -99,7 +99,7 @@ fn dir_bin(t: Vec3) -> usize {
 /// The direction of face angles (u, v) ∈ [-1, 1]² (in units of 45°) on cube face `face` (the
 /// inverse of [`dir_bin`]).
 fn face_dir(face: usize, u: f32, v: f32) -> Vec3 {
-    let s = if face % 2 == 0 { 1.0 } else { -1.0 };
+    let s = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
     let quarter = std::f32::consts::FRAC_PI_4;
     let (u, v) = ((u * quarter).tan(), (v * quarter).tan());
     match face / 2 {

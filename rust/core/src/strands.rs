@@ -76,7 +76,7 @@ impl StrandSet {
     /// Builds a strand set from a flat `[x, y, z, x, y, z, ...]` array.
     pub fn from_flat(flat: &[f32], counts: Vec<u32>) -> Result<Self, StrandError> {
         let points = flat.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect::<Vec<_>>();
-        if flat.len() % 3 != 0 {
+        if !flat.len().is_multiple_of(3) {
             let sum: u64 = counts.iter().map(|&c| c as u64).sum();
             return Err(StrandError::CountMismatch { sum, points: flat.len() / 3 });
         }

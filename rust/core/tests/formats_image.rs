@@ -311,3 +311,20 @@ fn an_image_claiming_too_many_pixels_is_refused_before_decoding() {
     assert_eq!(read_gray_f32(&huge).unwrap().width, 1);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// An OpenEXR header (found by the fuzzer, `scripts/fuzz.sh`) whose layers claim more samples
+/// than exist memory for: every reader refuses it from the header, without allocating.
+#[test]
+fn an_exr_claiming_more_samples_than_the_budget_is_refused_before_decoding() {
+    let bytes = include_bytes!("data/exr_header_claims_terabytes.exr");
+    let errors = [
+        read_image_bytes(bytes).unwrap_err(),
+        read_exr_channels_bytes(bytes).unwrap_err(),
+        read_gray_f32_bytes(bytes).unwrap_err(),
+        read_rgb_f32_bytes(bytes).unwrap_err(),
+    ];
+    for e in errors {
+        let msg = e.to_string();
+        assert!(msg.contains("more than the"), "{msg}");
+    }
+}

@@ -76,11 +76,23 @@ pub enum PhotoError {
         camera_width: u32,
         camera_height: u32,
     },
+    #[error(
+        "photo {path} is {width}x{height} pixels ({megapixels} megapixels), more than the {} megapixels \
+         hairrecon reads; scale it down (hairrecon works at a few hundred to a few thousand pixels of \
+         height), or check that the file is what the camera wrote",
+        MAX_PHOTO_PIXELS / 1_000_000
+    )]
+    TooLarge { path: PathBuf, width: u32, height: u32, megapixels: u64 },
     #[error("cannot resample a photo to a working height of {target_height} pixels; give a height of at least 1")]
     BadTarget { target_height: u32 },
     #[error("cannot resample a photo with intrinsics {intrinsics}; the calibration is invalid: check the camera")]
     BadIntrinsics { intrinsics: String },
 }
+
+/// The most pixels a photo may have (64 megapixels, above the largest full-frame cameras; 384 MB of
+/// 16-bit RGB), checked from the header before decoding, so that a file claiming more (a corrupt
+/// or malicious header) is refused without allocating it.
+pub const MAX_PHOTO_PIXELS: u64 = 64_000_000;
 
 /// A photo's pixels: 8-bit or 16-bit RGB, row-major.
 #[derive(Debug, Clone, PartialEq)]
@@ -255,6 +267,7 @@ impl Photo {
 enum DecodeFailure {
     Broken(String),
     Unsupported(String),
+    TooLarge(u32, u32),
 }
 
 impl From<image::ImageError> for DecodeFailure {
@@ -299,6 +312,10 @@ pub fn load_photo(path: impl AsRef<Path>) -> Result<Photo, PhotoError> {
     }
     let (image, orientation) = guarded(|| {
         let mut decoder = ImageReader::with_format(Cursor::new(&bytes[..]), format).into_decoder()?;
+        let (width, height) = decoder.dimensions();
+        if width as u64 * height as u64 > MAX_PHOTO_PIXELS {
+            return Err(DecodeFailure::TooLarge(width, height));
+        }
         let orientation = decoder.orientation()?;
         let image = DynamicImage::from_decoder(decoder)?;
         Ok((image, orientation))
@@ -306,6 +323,12 @@ pub fn load_photo(path: impl AsRef<Path>) -> Result<Photo, PhotoError> {
     .map_err(|e| match e {
         DecodeFailure::Broken(msg) => unreadable(msg),
         DecodeFailure::Unsupported(what) => unsupported(what),
+        DecodeFailure::TooLarge(width, height) => PhotoError::TooLarge {
+            path: path.to_path_buf(),
+            width,
+            height,
+            megapixels: (width as u64 * height as u64).div_ceil(1_000_000),
+        },
     })?;
     drop(bytes);
     let pixels = match image {

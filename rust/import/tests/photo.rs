@@ -365,3 +365,19 @@ fn broken_photos_are_errors_that_name_the_file() {
     assert!(matches!(err, PhotoError::Missing { .. }) && err.to_string().contains("absent.jpg"), "{err}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A PNG header (found by the fuzzer, `scripts/fuzz.sh`) claiming 245 x 134,217,736 pixels: the
+/// photo is refused from its header, naming its size, without allocating 33 GB.
+#[test]
+fn a_photo_claiming_too_many_pixels_is_refused_before_decoding() {
+    let dir = tmp("huge");
+    let path = dir.join("huge.png");
+    std::fs::write(&path, include_bytes!("data/png_header_claims_4_gigapixels.png")).unwrap();
+    match load_photo(&path) {
+        Err(e @ PhotoError::TooLarge { width: 245, height: 134_217_736, .. }) => {
+            let msg = e.to_string();
+            assert!(msg.contains("huge.png") && msg.contains("scale it down"), "{msg}");
+        }
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+}

@@ -100,12 +100,14 @@ impl Class {
             | ReconError::Capture(_)
             | ReconError::Implausible { .. }
             | ReconError::EmptyStage { .. }
+            | ReconError::Degenerate { .. }
             | ReconError::HeadFit(_)
             | ReconError::Masks(_) => Class::Capture,
             ReconError::Config(_)
             | ReconError::EmptyPlan { .. }
             | ReconError::MissingStageOutput { .. }
-            | ReconError::ForeignOutDir { .. } => Class::Input,
+            | ReconError::ForeignOutDir { .. }
+            | ReconError::Busy { .. } => Class::Input,
             _ => Class::Other,
         }
     }

@@ -61,7 +61,7 @@ struct Case {
 }
 
 fn make_case(rng: &mut Rng, i: usize) -> Case {
-    let method = if i % 2 == 0 { AaMethod::Ours } else { AaMethod::Nvdiffrast };
+    let method = if i.is_multiple_of(2) { AaMethod::Ours } else { AaMethod::Nvdiffrast };
     let w = 18 + rng.int(11);
     let h = 18 + rng.int(11);
     let nseg = 1 + rng.int(3) as usize;

@@ -49,6 +49,12 @@ pub enum ReconError {
          the whole pipeline (no --from), or give another --out"
     )]
     OtherCapture { path: PathBuf, theirs: PathBuf, ours: PathBuf, from: Stage },
+    /// Another run (another process, or another job of this one) is writing into the output folder.
+    #[error(
+        "another hairrecon run is writing into {path} now; two runs in one folder would mix their files: wait \
+         for it to finish (or cancel it), or give another --out"
+    )]
+    Busy { path: PathBuf },
     /// A file in the output folder cannot be written or removed.
     #[error("cannot write {path}: {source}")]
     Write { path: PathBuf, source: std::io::Error },
@@ -78,6 +84,9 @@ pub enum ReconError {
     /// A stage made nothing to work on, so the later stages cannot run.
     #[error("the {stage} stage found {what}: {cause}")]
     EmptyStage { stage: Stage, what: &'static str, cause: &'static str },
+    /// A stage's strands cannot be hair ([`crate::stages::sanity`]).
+    #[error("the {stage} stage made degenerate {msg}")]
+    Degenerate { stage: Stage, msg: String },
     /// The head fit (stage `head`) failed.
     #[error("the head fit: {0}")]
     HeadFit(String),

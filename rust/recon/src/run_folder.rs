@@ -10,6 +10,10 @@
 //! - Any other folder (someone's documents, a capture) is refused, naming the files no run
 //!   writes, unless `Plan::overwrite`; then only the names this run writes are cleared.
 //!
+//! While it runs, a run holds an advisory lock on the folder itself ([`lock`]; `flock` on the
+//! directory, so nothing is written for it and a killed process lets go at once): a second run
+//! into the same folder, from another process or another job of this one, is refused.
+//!
 //! The temporary files of an earlier run killed outright (`.NAME.tmp-PID-N`) are removed too,
 //! unless their process still runs (on Linux, where that can be seen).
 
@@ -21,6 +25,24 @@ use crate::config::{ConfigFile, Plan, Stage};
 use crate::error::ReconError;
 use crate::report::Report;
 use crate::stages::{remove, OUTPUTS};
+
+/// The lock a run holds on its output folder while it runs (released when dropped).
+#[derive(Debug)]
+pub struct FolderLock {
+    _dir: Option<std::fs::File>,
+}
+
+/// Creates `out_dir` if needed and locks it for this run; [`ReconError::Busy`] when another run
+/// holds it. Where a folder cannot be opened as a file (Windows), runs are not locked.
+pub fn lock(out_dir: &Path) -> Result<FolderLock, ReconError> {
+    crate::stages::mkdir(out_dir)?;
+    let Ok(dir) = std::fs::File::open(out_dir) else { return Ok(FolderLock { _dir: None }) };
+    match dir.try_lock() {
+        Ok(()) => Ok(FolderLock { _dir: Some(dir) }),
+        Err(std::fs::TryLockError::WouldBlock) => Err(ReconError::Busy { path: out_dir.into() }),
+        Err(std::fs::TryLockError::Error(source)) => Err(ReconError::OutDir { path: out_dir.into(), source }),
+    }
+}
 
 /// Makes `out_dir` ready for a run of `plan` (see the module doc). Writes nothing; removes only
 /// files of an earlier run.
@@ -107,4 +129,26 @@ fn remove_temporaries(dir: &Path) -> Result<(), ReconError> {
 fn writer_runs(name: &str) -> bool {
     let pid = name.rsplit_once(".tmp-").and_then(|(_, tail)| tail.split('-').next());
     pid.is_some_and(|pid| Path::new("/proc").join(pid).exists())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_folder_is_locked_by_one_run_at_a_time() {
+        let dir = std::env::temp_dir().join(format!("hairrecon-lock-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let first = lock(&dir).unwrap();
+        assert!(dir.is_dir(), "the folder is made");
+        match lock(&dir) {
+            Err(e @ ReconError::Busy { .. }) => assert!(e.to_string().contains("another hairrecon run"), "{e}"),
+            other => panic!("expected Busy, got {other:?}"),
+        }
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "locking writes nothing");
+        drop(first);
+        let again = lock(&dir).unwrap();
+        drop(again);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

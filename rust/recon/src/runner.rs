@@ -32,7 +32,7 @@ use crate::stages::masks::MasksOut;
 use crate::stages::orient2d::Orient2dOut;
 use crate::stages::orient3d::Orient3dOut;
 use crate::stages::partings::PartingsOut;
-use crate::stages::{self, mkdir, remove, Context};
+use crate::stages::{self, remove, Context};
 
 /// What a run produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,8 +72,8 @@ pub fn reconstruct(
         // Cancelled while the meshes were checked: the earlier run's files are still whole.
         progress.check()?;
     }
+    let _lock = crate::run_folder::lock(out_dir)?;
     crate::run_folder::claim(out_dir, &plan, &capture.dir)?;
-    mkdir(out_dir)?;
     let mut report = Report::resumed(&capture.dir, out_dir, from);
     report.save(&out_dir.join("report.json"))?;
     ConfigFile::new(cfg.clone()).save(&out_dir.join("config.json"))?;

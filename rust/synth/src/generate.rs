@@ -169,7 +169,7 @@ impl HairGenerator {
                     };
                 }
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                if d % 1024 == 0 || d == roots.len() {
+                if d.is_multiple_of(1024) || d == roots.len() {
                     progress(d);
                 }
                 pts

@@ -291,7 +291,7 @@ fn straight_guides_are_smoothed_and_curly_ones_kept() {
     assert!(zigzag(s) < 0.00005, "zig-zag {} m left of 0.0005", zigzag(s));
 
     let spread = |i: usize| {
-        let a = if i % 2 == 0 { 30f32 } else { -30f32 }.to_radians();
+        let a = if i.is_multiple_of(2) { 30f32 } else { -30f32 }.to_radians();
         let t = Vec3::new(a.sin(), 0.0, -a.cos());
         if i % 4 < 2 {
             t

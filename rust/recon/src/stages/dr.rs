@@ -6,7 +6,7 @@
 use hairrecon_core::StrandSet;
 use serde::Serialize;
 
-use crate::config::ReconstructConfig;
+use crate::config::{ReconstructConfig, Stage};
 use crate::dr::optimize::optimize;
 use crate::dr::report::{write_loss_csv, write_loss_png};
 use crate::dr::{DrOptions, DrStage, DrTargets, LossRecord};
@@ -14,6 +14,7 @@ use crate::error::ReconError;
 use crate::orient2d::OrientationMap;
 use crate::roots::Scalp;
 use crate::stages::init::InitOut;
+use crate::stages::sanity::check_strands;
 use crate::stages::Context;
 
 /// The losses of one DR stage (guides or children).
@@ -98,6 +99,9 @@ pub fn run(
         guides: losses(DrStage::Guides),
         children: losses(DrStage::Children),
     };
+    let raw_box = ctx.raw()?.mesh().bbox();
+    check_strands(Stage::Dr, "guides", &r.guides, raw_box)?;
+    check_strands(Stage::Dr, "strands", &r.children, raw_box)?;
     Ok(DrOut { guides: r.guides, children: r.children, loss_curve: r.loss_curve, stats })
 }
 

@@ -29,6 +29,7 @@ use crate::oriented_points::OrientedPoints;
 use crate::parting::clear_points;
 use crate::raw_mesh::surface::smoothed;
 use crate::roots::{sample_roots, Roots, Scalp};
+use crate::stages::sanity::check_strands;
 use crate::stages::{need, write_json, Context};
 
 /// What the init stage measured along the way.
@@ -193,6 +194,9 @@ pub fn run(
     };
     progress.check()?;
     let children = if cfg.hull_trim { trim(ctx, cfg, scalp, children, &mut stats)? } else { children };
+    let raw_box = ctx.raw()?.mesh().bbox();
+    check_strands(Stage::Init, "guides", &guides, raw_box)?;
+    check_strands(Stage::Init, "strands", &children, raw_box)?;
     Ok(InitOut { guides, children, info: InitInfo { curl }, stats, seen_axes })
 }
 

@@ -17,6 +17,7 @@ pub mod masks;
 pub mod orient2d;
 pub mod orient3d;
 pub mod partings;
+pub mod sanity;
 
 use std::cell::{OnceCell, RefCell};
 use std::path::{Path, PathBuf};
