@@ -130,11 +130,36 @@ fn check_pixels(width: u64, height: u64) -> Result<()> {
     Ok(())
 }
 
+/// The most a PNG's pixel data can expand from its file: deflate's limit (1032:1) and a margin.
+const PNG_MAX_EXPANSION: u64 = 1100;
+/// The same for OpenEXR, whose DWA compression stores one value per 8 × 8 block and deflates
+/// those: about 64 × 1032 at most, with a margin.
+const EXR_MAX_EXPANSION: u64 = 100_000;
+
+/// A header that declares more pixel data than its file could hold under any compression is a
+/// truncated or forged file: refused before the decoder allocates the image.
+fn check_expansion(format: &str, file_len: usize, raw_bytes: u64, max_ratio: u64) -> Result<()> {
+    if raw_bytes > (file_len as u64).saturating_mul(max_ratio) {
+        return Err(image_err(format!(
+            "the {format} header declares {raw_bytes} bytes of pixels, more than a file of {file_len} bytes can \
+             hold; the file is truncated or corrupt"
+        )));
+    }
+    Ok(())
+}
+
+/// Checks a PNG's header against [`MAX_PIXELS`] and its file size, before decoding.
+fn check_png_header(bytes: &[u8]) -> Result<()> {
+    use image::ImageDecoder;
+    let decoder = image::codecs::png::PngDecoder::new(IoCursor::new(bytes)).map_err(image_err)?;
+    let (w, h) = decoder.dimensions();
+    check_pixels(w as u64, h as u64)?;
+    check_expansion("PNG", bytes.len(), decoder.total_bytes(), PNG_MAX_EXPANSION)
+}
+
 fn decode(bytes: &[u8]) -> Result<Decoded> {
     if bytes.starts_with(PNG_MAGIC) {
-        let size = image::ImageReader::with_format(IoCursor::new(bytes), image::ImageFormat::Png).into_dimensions();
-        let (w, h) = size.map_err(image_err)?;
-        check_pixels(w as u64, h as u64)?;
+        guarded(|| check_png_header(bytes))?;
         guarded(|| {
             let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png).map_err(image_err)?;
             Ok(Decoded::Png(img))
@@ -148,8 +173,10 @@ fn decode(bytes: &[u8]) -> Result<Decoded> {
 }
 
 /// The most float samples an OpenEXR file read by this module may hold over all its layers and
-/// channels (480 MB as `f32`, the same as [`MAX_PIXELS`] of float RGB), checked from the header.
-pub const MAX_EXR_SAMPLES: u64 = 3 * MAX_PIXELS;
+/// channels (48 million: 16 megapixels of RGB, or a 2048 × 2048 render with 11 channels), checked
+/// from the header. Decoding holds about four copies of them (the decoder's, the channels', the
+/// interleaved image and a conversion): 0.8 GB at most.
+pub const MAX_EXR_SAMPLES: u64 = 48_000_000;
 
 /// Checks an OpenEXR file's header against [`MAX_PIXELS`] per layer and [`MAX_EXR_SAMPLES`] in all,
 /// before the decoder allocates what the header claims.
@@ -158,12 +185,17 @@ fn check_exr_header(bytes: &[u8]) -> Result<()> {
         exr::meta::MetaData::read_from_buffered(IoCursor::new(bytes), false)
             .map_err(|e| image_err(format!("cannot read the OpenEXR header: {e}")))
     })?;
-    let mut samples = 0u64;
+    let (mut samples, mut raw_bytes) = (0u64, 0u64);
     for h in &meta.headers {
         let (w, hh) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
         check_pixels(w, hh)?;
-        samples = samples.saturating_add(w.saturating_mul(hh).saturating_mul(h.channels.list.len() as u64));
+        for c in &h.channels.list {
+            samples = samples.saturating_add(w.saturating_mul(hh));
+            raw_bytes =
+                raw_bytes.saturating_add(w.saturating_mul(hh).saturating_mul(c.sample_type.bytes_per_sample() as u64));
+        }
     }
+    check_expansion("OpenEXR", bytes.len(), raw_bytes, EXR_MAX_EXPANSION)?;
     if samples > MAX_EXR_SAMPLES {
         return Err(image_err(format!(
             "the OpenEXR file holds {samples} samples over its layers and channels, more than the \
@@ -190,7 +222,7 @@ fn decode_exr(bytes: &[u8]) -> Result<Decoded> {
         return Err(image_err(format!("the OpenEXR image is too large ({w}x{h})")));
     };
     let channels: Vec<(String, Vec<f32>)> =
-        layer.channel_data.list.iter().map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect())).collect();
+        layer.channel_data.list.into_iter().map(|c| (c.name.to_string(), into_f32(c.sample_data))).collect();
     if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != w * h) {
         return Err(image_err(format!(
             "OpenEXR channel {name:?} is subsampled; hairrecon reads full-resolution channels"
@@ -200,6 +232,15 @@ fn decode_exr(bytes: &[u8]) -> Result<Decoded> {
         return Err(image_err("the OpenEXR file has no channels"));
     }
     Ok(Decoded::Exr(w32, h32, channels))
+}
+
+/// A channel's samples as `f32`, moved rather than copied when they are `f32` already (a large
+/// image is held once, not twice).
+fn into_f32(samples: exr::prelude::FlatSamples) -> Vec<f32> {
+    match samples {
+        exr::prelude::FlatSamples::F32(v) => v,
+        other => other.values_as_f32().collect(),
+    }
 }
 
 fn take_channel(channels: &mut Vec<(String, Vec<f32>)>, name: &str) -> Option<Vec<f32>> {
@@ -550,7 +591,7 @@ pub fn read_exr_channels_bytes(bytes: &[u8]) -> Result<ExrChannels> {
         let several = image.layer_data.len() > 1;
         let mut size = None;
         let mut channels: Vec<(String, Vec<f32>)> = Vec::new();
-        for layer in &image.layer_data {
+        for layer in image.layer_data {
             let (w, h) = (layer.size.width(), layer.size.height());
             match size {
                 None => size = Some((w, h)),
@@ -565,14 +606,14 @@ pub fn read_exr_channels_bytes(bytes: &[u8]) -> Result<ExrChannels> {
             }
             let prefix =
                 layer.attributes.layer_name.as_ref().map(|n| n.to_string()).filter(|n| several && !n.is_empty());
-            for c in &layer.channel_data.list {
+            for c in layer.channel_data.list {
                 let mut name = c.name.to_string();
                 if let Some(p) = &prefix {
                     if !name.starts_with(&format!("{p}.")) {
                         name = format!("{p}.{name}");
                     }
                 }
-                let values: Vec<f32> = c.sample_data.values_as_f32().collect();
+                let values = into_f32(c.sample_data);
                 if values.len() != w * h {
                     return Err(image_err(format!(
                         "OpenEXR channel {name:?} is subsampled; hairrecon reads full-resolution channels"

@@ -25,6 +25,10 @@ pub struct StageRecord {
     pub stage: Stage,
     /// Wall time of the stage, seconds.
     pub seconds: f64,
+    /// CPU time of the process during the stage, user and system, over all threads, seconds
+    /// (`cpu_seconds / seconds` is how many cores the stage kept busy; `None` off Linux).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cpu_seconds: Option<f64>,
     /// The process's peak resident memory at the end of the stage, MiB (a running maximum: the
     /// first stage whose value jumps is the one that needed the memory; `None` off Linux).
     pub peak_rss_mb: Option<f64>,
@@ -142,11 +146,18 @@ impl Report {
     }
 
     /// Records a finished stage with its statistics (`&()` for none) and the files it wrote.
-    pub fn record(&mut self, stage: Stage, seconds: f64, stats: &impl Serialize, files: Vec<String>) {
+    pub fn record(
+        &mut self,
+        stage: Stage,
+        seconds: f64,
+        cpu_seconds: Option<f64>,
+        stats: &impl Serialize,
+        files: Vec<String>,
+    ) {
         let stats = serde_json::to_value(stats).unwrap_or(serde_json::Value::Null);
         self.stages.retain(|s| s.stage != stage);
         let peak_rss_mb = peak_rss_bytes().map(|b| (b as f64 / (1 << 20) as f64).round());
-        self.stages.push(StageRecord { stage, seconds, peak_rss_mb, stats, files });
+        self.stages.push(StageRecord { stage, seconds, cpu_seconds, peak_rss_mb, stats, files });
     }
 
     /// Every file of the run, relative to the output folder: the stages' and the run's own
@@ -166,6 +177,37 @@ impl Report {
     pub fn save(&self, path: &Path) -> Result<(), crate::error::ReconError> {
         crate::stages::write_json(path, self)
     }
+}
+
+/// Wall and CPU time since a stage started.
+#[derive(Debug, Clone, Copy)]
+pub struct StageClock {
+    wall: std::time::Instant,
+    cpu: Option<f64>,
+}
+
+impl StageClock {
+    pub fn start() -> Self {
+        Self { wall: std::time::Instant::now(), cpu: process_cpu_seconds() }
+    }
+
+    /// (wall seconds, CPU seconds) since [`StageClock::start`].
+    pub fn elapsed(&self) -> (f64, Option<f64>) {
+        let cpu = self.cpu.zip(process_cpu_seconds()).map(|(a, b)| ((b - a) * 100.0).round() / 100.0);
+        (self.wall.elapsed().as_secs_f64(), cpu)
+    }
+}
+
+/// The process's CPU time so far, user and system over all threads, in seconds (Linux
+/// `/proc/self/stat`, whose clock ticks are 1/100 s on every Linux; `None` elsewhere).
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name (field 2) may hold spaces; the fields after it start past its ')'.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let mut fields = rest.split_whitespace();
+    let utime: u64 = fields.nth(11)?.parse().ok()?;
+    let stime: u64 = fields.next()?.parse().ok()?;
+    Some((utime + stime) as f64 / 100.0)
 }
 
 /// The process's peak resident memory so far in bytes (Linux `VmHWM`; `None` elsewhere).

@@ -16,7 +16,6 @@
 //! is removed); its report says `cancelled` or `failed` and lists what is there.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use hairrecon_core::capture::Capture;
 
@@ -24,7 +23,7 @@ use crate::config::{ConfigFile, Plan, ReconstructConfig, Stage};
 use crate::error::ReconError;
 use crate::eval::Evaluator;
 use crate::progress::Progress;
-use crate::report::{Report, RunStatus};
+use crate::report::{Report, RunStatus, StageClock};
 use crate::stages::direction::DirectionOut;
 use crate::stages::head::{HeadOut, Need};
 use crate::stages::init::InitOut;
@@ -150,7 +149,7 @@ fn run_all(
     } else {
         let ctx = Context::new(capture, out_dir, progress);
         let made = if runs(Stage::Head) {
-            let t = Instant::now();
+            let t = StageClock::start();
             let made = guarded(&ctx, || {
                 let (o, meshes) = stages::head::run(&ctx, cfg)?;
                 o.save(&ctx, &meshes)?;
@@ -197,7 +196,7 @@ fn run_all(
     let masked = if stages::masks::needed(&placed, cfg) && placed.head_mesh.is_some() {
         let ctx = Context::new(&placed, out_dir, progress);
         if runs(Stage::Masks) {
-            let t = Instant::now();
+            let t = StageClock::start();
             let o = guarded(&ctx, || {
                 let o = stages::masks::run(&ctx, cfg)?;
                 o.save(&ctx)?;
@@ -230,7 +229,7 @@ fn run_stages(
 ) -> Result<(), ReconError> {
     let eval = Evaluator::new(ctx.capture);
     let runs = |s: Stage| from <= s && s <= last;
-    let t = Instant::now();
+    let t = StageClock::start();
     let maps = if runs(Stage::Orient2d) {
         let o = stages::orient2d::run(ctx, cfg)?;
         o.save(ctx, cfg.write_pictures)?;
@@ -244,7 +243,7 @@ fn run_stages(
         return Ok(());
     }
 
-    let t = Instant::now();
+    let t = StageClock::start();
     let points = if runs(Stage::Orient3d) {
         let o = stages::orient3d::run(ctx, cfg, &maps)?;
         o.save(ctx)?;
@@ -260,7 +259,7 @@ fn run_stages(
         return Ok(());
     }
 
-    let t = Instant::now();
+    let t = StageClock::start();
     let scalp = if runs(Stage::Partings) {
         let o = stages::partings::run(ctx, cfg)?;
         o.save(ctx)?;
@@ -273,7 +272,7 @@ fn run_stages(
         return Ok(());
     }
 
-    let t = Instant::now();
+    let t = StageClock::start();
     let directed = match points {
         Some(points) => {
             let o = stages::direction::run(ctx, cfg, &points, &scalp)?;
@@ -289,7 +288,7 @@ fn run_stages(
         return Ok(());
     }
 
-    let t = Instant::now();
+    let t = StageClock::start();
     let init = if runs(Stage::Init) {
         let o = stages::init::run(ctx, cfg, &directed, &scalp, &maps)?;
         o.save(ctx)?;
@@ -315,7 +314,7 @@ fn run_stages(
         return Ok(());
     }
 
-    let t = Instant::now();
+    let t = StageClock::start();
     let o = stages::dr::run(ctx, cfg, &init, &maps, &scalp)?;
     o.save(ctx)?;
     finished(ctx, report, Stage::Dr, t, &o.stats)?;
@@ -332,9 +331,10 @@ fn finished(
     ctx: &Context<'_>,
     report: &mut Report,
     stage: Stage,
-    start: Instant,
+    start: StageClock,
     stats: &impl serde::Serialize,
 ) -> Result<(), ReconError> {
-    report.record(stage, start.elapsed().as_secs_f64(), stats, ctx.take_written());
+    let (seconds, cpu_seconds) = start.elapsed();
+    report.record(stage, seconds, cpu_seconds, stats, ctx.take_written());
     report.save(&ctx.path("report.json"))
 }

@@ -1,0 +1,20 @@
+//! The CPU time a run's report gives each stage (`report::StageClock`), in a process of its own so
+//! that no other test's threads add theirs: busy work counts, waiting does not.
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_stage_clock_counts_cpu_time_not_waiting() {
+    use hairrecon_recon::report::StageClock;
+    let clock = StageClock::start();
+    let t = std::time::Instant::now();
+    let mut x = 1u64;
+    while t.elapsed().as_secs_f64() < 0.4 {
+        x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(400));
+    let (wall, cpu) = clock.elapsed();
+    let cpu = cpu.expect("/proc/self/stat reads on Linux");
+    assert!(wall >= 0.8, "{wall}");
+    // 0.4 s of work, not the 0.4 s asleep on top (ticks are 10 ms).
+    assert!((0.3..=0.55).contains(&cpu), "cpu {cpu} s of wall {wall} s");
+}
