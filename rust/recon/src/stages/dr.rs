@@ -99,7 +99,7 @@ pub fn run(
         guides: losses(DrStage::Guides),
         children: losses(DrStage::Children),
     };
-    let raw_box = ctx.raw()?.mesh().bbox();
+    let raw_box = ctx.raw_bbox()?;
     check_strands(Stage::Dr, "guides", &r.guides, raw_box)?;
     check_strands(Stage::Dr, "strands", &r.children, raw_box)?;
     Ok(DrOut { guides: r.guides, children: r.children, loss_curve: r.loss_curve, stats })

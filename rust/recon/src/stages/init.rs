@@ -194,7 +194,7 @@ pub fn run(
     };
     progress.check()?;
     let children = if cfg.hull_trim { trim(ctx, cfg, scalp, children, &mut stats)? } else { children };
-    let raw_box = ctx.raw()?.mesh().bbox();
+    let raw_box = ctx.raw_bbox()?;
     check_strands(Stage::Init, "guides", &guides, raw_box)?;
     check_strands(Stage::Init, "strands", &children, raw_box)?;
     Ok(InitOut { guides, children, info: InitInfo { curl }, stats, seen_axes })

@@ -102,6 +102,15 @@ impl<'a> Context<'a> {
         Ok(self.raw.get().expect("set above"))
     }
 
+    /// The raw mesh's bounding box: from its BVH when a stage has built it, else from the file
+    /// (a run resumed at DR does not build a BVH for a box).
+    pub fn raw_bbox(&self) -> Result<(glam::Vec3, glam::Vec3), ReconError> {
+        match self.raw.get() {
+            Some(bvh) => Ok(bvh.mesh().bbox()),
+            None => Ok(self.capture.read_mesh(&self.capture.raw_mesh)?.bbox()),
+        }
+    }
+
     /// The scalp mesh's path.
     pub fn scalp_path(&self) -> Result<&Path, ReconError> {
         self.capture.scalp_mesh.as_deref().ok_or_else(|| ReconError::NoScalp { dir: self.capture.dir.clone() })
