@@ -12,21 +12,6 @@ use hairrecon_core::image_io;
 use hairrecon_import::photo::load_photo;
 use hairrecon_import::{read_colmap, read_metashape, read_nerf};
 
-/// The fuzz targets, by name (`fuzz_targets/<name>.rs`).
-pub const TARGETS: &[&str] = &[
-    "hair",
-    "data",
-    "ply",
-    "obj",
-    "image",
-    "capture_json",
-    "colmap_text",
-    "colmap_binary",
-    "metashape",
-    "nerf",
-    "photo",
-];
-
 /// Where multi-file inputs (a COLMAP model) split into their files.
 pub const FILE_SEPARATOR: &[u8] = b"\n%%%%\n";
 
@@ -137,23 +122,5 @@ pub fn nerf(data: &[u8]) {
 pub fn photo(data: &[u8]) {
     if let Ok(photo) = load_photo(put("photo", data)) {
         let _ = photo.oriented();
-    }
-}
-
-/// Runs the named harness.
-pub fn run(target: &str, bytes: &[u8]) {
-    match target {
-        "hair" => hair(bytes),
-        "data" => data(bytes),
-        "ply" => ply(bytes),
-        "obj" => obj(bytes),
-        "image" => image(bytes),
-        "capture_json" => capture_json(bytes),
-        "colmap_text" => colmap_text(bytes),
-        "colmap_binary" => colmap_binary(bytes),
-        "metashape" => metashape(bytes),
-        "nerf" => nerf(bytes),
-        "photo" => photo(bytes),
-        other => panic!("no fuzz target {other}"),
     }
 }
