@@ -23,11 +23,11 @@ use super::reparam::{LaplacianParams, Reparam};
 use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
 
-/// One view slot of a step: its buffers (the renderer comes from the pool).
+/// One view slot of a step: its buffers (the renderer and the gradient buffer come from the
+/// pool).
 #[derive(Debug)]
 struct Slot {
     d_image: Image,
-    grad: Vec<Vec3>,
     /// The hard raster's ids of the slot's view after the last evaluation.
     ids: Vec<u32>,
 }
@@ -71,6 +71,9 @@ fn segments(offsets: &[usize]) -> Vec<[u32; 2]> {
 pub struct Evaluator {
     slots: Vec<Slot>,
     renderers: Vec<Renderer>,
+    /// One gradient per renderer: a round's views' gradients, added to `g_render` in view order
+    /// after the round.
+    grads: Vec<Vec<Vec3>>,
     segs: Vec<[u32; 2]>,
     render_pts: Vec<Vec3>,
     g_render: Vec<Vec3>,
@@ -177,10 +180,9 @@ impl Evaluator {
         let per_step = opts.views_per_step.clamp(1, targets.views.len().max(1));
         let pool = per_step.min(rayon::current_num_threads().max(1));
         Self {
-            slots: (0..per_step)
-                .map(|_| Slot { d_image: Image::default(), grad: Vec::new(), ids: Vec::new() })
-                .collect(),
+            slots: (0..per_step).map(|_| Slot { d_image: Image::default(), ids: Vec::new() }).collect(),
             renderers: (0..pool).map(|_| Renderer::new(AaMethod::Ours)).collect(),
+            grads: vec![Vec::new(); pool],
             segs: segments(&render_offsets),
             render_pts: vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }],
             g_render: vec![Vec3::ZERO; n_render],
@@ -219,40 +221,39 @@ impl Evaluator {
         let pts: &[Vec3] = if map.is_some() { &self.render_pts } else { x };
         let views = &views[..views.len().min(self.slots.len())];
         let (segs, settings) = (&self.segs, self.settings);
-        // Rounds of as many views as renderers; each view's gradient stays in its slot and the
-        // slots are summed in view order, so the result does not depend on the thread count.
+        // Rounds of as many views as renderers; each view's gradient stays in its renderer's
+        // buffer until the round ends, and the buffers are added in view order, so the result does
+        // not depend on the thread count.
+        let inv_v = 1.0 / views.len().max(1) as f32;
+        self.g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
         let mut losses: Vec<Result<LossTerms, DrError>> = Vec::with_capacity(views.len());
         let round = self.renderers.len().max(1);
         for (slots, vs) in self.slots[..views.len()].chunks_mut(round).zip(views.chunks(round)) {
             let done: Vec<Result<LossTerms, DrError>> = slots
                 .par_iter_mut()
-                .zip(self.renderers.par_iter_mut())
+                .zip(self.renderers.par_iter_mut().zip(self.grads.par_iter_mut()))
                 .zip(vs.par_iter())
-                .map(|((slot, renderer), &v)| {
+                .map(|((slot, (renderer, grad)), &v)| {
                     let view = &targets.views[v];
                     renderer.forward(&view.camera, pts, segs, settings)?;
                     let loss =
                         image_loss(&renderer.aa.image, &renderer.buffers.depth, view, &opts.weights, &mut slot.d_image);
                     slot.ids.clear();
                     slot.ids.extend_from_slice(&renderer.buffers.ids);
-                    slot.grad.clear();
-                    slot.grad.resize(pts.len(), Vec3::ZERO);
-                    renderer.backward(&view.camera, pts, &slot.d_image, &mut slot.grad)?;
+                    grad.clear();
+                    grad.resize(pts.len(), Vec3::ZERO);
+                    renderer.backward(&view.camera, pts, &slot.d_image, grad)?;
                     Ok(loss)
                 })
                 .collect();
             losses.extend(done);
+            for grad in &self.grads[..vs.len()] {
+                self.g_render.par_iter_mut().zip(grad).with_min_len(1 << 16).for_each(|(g, s)| *g += *s * inv_v);
+            }
         }
-        let inv_v = 1.0 / views.len().max(1) as f32;
         let mut loss = LossTerms::default();
         for l in losses {
             loss += l? * inv_v as f64;
-        }
-        self.g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
-        for slot in &self.slots[..views.len()] {
-            for (g, s) in self.g_render.iter_mut().zip(&slot.grad) {
-                *g += *s * inv_v;
-            }
         }
         match map {
             Some(m) => {

@@ -48,6 +48,12 @@ pub struct LaplacianParams {
 }
 
 /// The factored system `M = (I + λL)_ff` of the free (non-root) points.
+///
+/// `M` is not stored as a sparse matrix: its off-diagonal entries are `-λ` along each strand and
+/// `-λw` between point `j` of a strand and point `j` of each strand N ties it to, so the strands'
+/// neighbour lists ([`Reparam::neighbours`]) and one diagonal value per point hold it. For 50,000
+/// children of ~160 points and k = 10 that is ~4 MB of neighbour lists where a CSR matrix held
+/// ~1.1 GB (and ~2 GB while it was built).
 #[derive(Debug, Clone)]
 pub struct Reparam {
     /// Global point index of each free slot, in order (the free points of a strand are contiguous).
@@ -56,11 +62,16 @@ pub struct Reparam {
     slot: Vec<u32>,
     /// Free-slot ranges per strand.
     chains: Vec<(u32, u32)>,
-    row_ptr: Vec<u32>,
-    cols: Vec<u32>,
-    vals: Vec<f32>,
+    /// The strands N ties each strand to, ascending: strand `s`'s are
+    /// `adj[adj_ptr[s]..adj_ptr[s + 1]]`.
+    adj_ptr: Vec<u32>,
+    adj: Vec<u32>,
+    /// `M`'s diagonal per free slot: `1 + λ · degree`.
+    diag: Vec<f32>,
+    /// `M`'s entry between neighbouring points of N: `-λw`.
+    n_val: f32,
     /// Thomas factors of each strand's tridiagonal block: `cp` and `1/den` per slot, and the
-    /// off-diagonal value.
+    /// off-diagonal value (`-λ`, also `M`'s entry between consecutive points of a strand).
     cp: Vec<f32>,
     inv_den: Vec<f32>,
     off: f32,
@@ -122,7 +133,7 @@ impl Reparam {
             chains.push((a, free.len() as u32));
         }
         let nf = free.len();
-        // Diagonal of L per global point, and off-diagonal N entries per free row.
+        // Diagonal of L per global point: the chain's edges, then N's.
         let mut degree = vec![0.0f32; n];
         for s in 0..ns {
             for i in offsets[s]..offsets[s + 1] - 1 {
@@ -130,63 +141,53 @@ impl Reparam {
                 degree[i + 1] += 1.0;
             }
         }
-        let mut nrows: Vec<Vec<(u32, f32)>> = vec![Vec::new(); nf];
-        if params.k_neighbors > 0 && params.neighbor_weight > 0.0 {
-            let w = params.neighbor_weight;
-            for (a, b) in neighbor_pairs(points, offsets, params.k_neighbors, params.key) {
-                let (oa, ob) = (offsets[a as usize], offsets[b as usize]);
-                let m = (offsets[a as usize + 1] - oa).min(offsets[b as usize + 1] - ob);
-                // Point 0 (the roots) are fixed: tie the rest.
-                for j in 1..m {
-                    let (ia, ib) = (oa + j, ob + j);
-                    degree[ia] += w;
-                    degree[ib] += w;
-                    let (sa, sb) = (slot[ia], slot[ib]);
-                    nrows[sa as usize].push((sb, -lambda * w));
-                    nrows[sb as usize].push((sa, -lambda * w));
-                }
-            }
+        let w = params.neighbor_weight;
+        let pairs = if params.k_neighbors > 0 && w > 0.0 {
+            neighbor_pairs(points, offsets, params.k_neighbors, params.key)
+        } else {
+            Vec::new()
+        };
+        // Each strand's neighbours, ascending (the pairs are sorted, so `b`s arrive in order for
+        // each `a`; sorting per strand orders the `a`s that come before them).
+        let mut count = vec![0u32; ns + 1];
+        for &(a, b) in &pairs {
+            count[a as usize] += 1;
+            count[b as usize] += 1;
         }
-        // CSR rows: F neighbours within the strand, the diagonal, then N entries (sorted by column).
-        let mut row_ptr = Vec::with_capacity(nf + 1);
-        let mut cols = Vec::new();
-        let mut vals = Vec::new();
-        row_ptr.push(0u32);
-        let mut row: Vec<(u32, f32)> = Vec::new();
-        for (f, &gi) in free.iter().enumerate() {
-            let gi = gi as usize;
-            row.clear();
-            row.push((f as u32, 1.0 + lambda * degree[gi]));
-            if slot[gi - 1] != u32::MAX {
-                row.push((f as u32 - 1, -lambda));
-            }
-            if gi + 1 < n && slot[gi + 1] == f as u32 + 1 {
-                row.push((f as u32 + 1, -lambda));
-            }
-            row.extend_from_slice(&nrows[f]);
-            row.sort_unstable_by_key(|e| e.0);
-            // Merge duplicates (a point tied to the same neighbour twice cannot happen, but be safe).
-            let start = cols.len();
-            for &(c, v) in &row {
-                if cols.len() > start && *cols.last().unwrap_or(&u32::MAX) == c {
-                    if let Some(l) = vals.last_mut() {
-                        *l += v;
-                    }
-                } else {
-                    cols.push(c);
-                    vals.push(v);
-                }
-            }
-            row_ptr.push(cols.len() as u32);
+        let mut adj_ptr = Vec::with_capacity(ns + 1);
+        let mut acc = 0u32;
+        for c in &count[..ns] {
+            adj_ptr.push(acc);
+            acc += c;
         }
-        drop(nrows);
+        adj_ptr.push(acc);
+        let mut fill: Vec<u32> = adj_ptr[..ns].to_vec();
+        let mut adj = vec![0u32; acc as usize];
+        for &(a, b) in &pairs {
+            let m = (offsets[a as usize + 1] - offsets[a as usize]).min(offsets[b as usize + 1] - offsets[b as usize]);
+            // Point 0 (the roots) are fixed: tie the rest.
+            for j in 1..m {
+                degree[offsets[a as usize] + j] += w;
+                degree[offsets[b as usize] + j] += w;
+            }
+            adj[fill[a as usize] as usize] = b;
+            fill[a as usize] += 1;
+            adj[fill[b as usize] as usize] = a;
+            fill[b as usize] += 1;
+        }
+        drop((fill, count, pairs));
+        for s in 0..ns {
+            adj[adj_ptr[s] as usize..adj_ptr[s + 1] as usize].sort_unstable();
+        }
+        let diag: Vec<f32> = free.iter().map(|&gi| 1.0 + lambda * degree[gi as usize]).collect();
+        drop(degree);
         // Thomas factors of each chain's tridiagonal block.
         let off = -lambda;
         let mut cp = vec![0.0f32; nf];
         let mut inv_den = vec![0.0f32; nf];
         for &(a, b) in &chains {
             for f in a as usize..b as usize {
-                let d = 1.0 + lambda * degree[free[f] as usize];
+                let d = diag[f];
                 let den = if f == a as usize { d } else { d - off * cp[f - 1] };
                 inv_den[f] = 1.0 / den;
                 cp[f] = off / den;
@@ -196,9 +197,10 @@ impl Reparam {
             free,
             slot,
             chains,
-            row_ptr,
-            cols,
-            vals,
+            adj_ptr,
+            adj,
+            diag,
+            n_val: -lambda * w,
             cp,
             inv_den,
             off,
@@ -234,42 +236,66 @@ impl Reparam {
 
     /// Non-zeros of `M`.
     pub fn nnz(&self) -> usize {
-        self.vals.len()
+        let chain_len = |s: usize| (self.chains[s].1 - self.chains[s].0) as usize;
+        let along: usize = (0..self.chains.len()).map(|s| (3 * chain_len(s)).saturating_sub(2)).sum();
+        let across: usize = (0..self.chains.len())
+            .flat_map(|s| self.neighbours(s).iter().map(move |&t| (s, t as usize)))
+            .map(|(s, t)| chain_len(s).min(chain_len(t)))
+            .sum();
+        along + across
     }
 
-    /// `out = M x`.
+    /// The strands N ties strand `s` to, ascending.
+    pub fn neighbours(&self, s: usize) -> &[u32] {
+        &self.adj[self.adj_ptr[s] as usize..self.adj_ptr[s + 1] as usize]
+    }
+
+    /// `out = M x`. Each row sums its terms in the order of its columns (the neighbours before
+    /// the strand, the strand's own three, the neighbours after it), whatever the thread count.
     pub fn apply(&self, x: &[Vec3], out: &mut [Vec3]) {
-        let (rp, cols, vals) = (&self.row_ptr, &self.cols, &self.vals);
-        out.par_iter_mut().with_min_len(4096).enumerate().for_each(|(i, o)| {
-            let mut acc = Vec3::ZERO;
-            for k in rp[i] as usize..rp[i + 1] as usize {
-                acc += x[cols[k] as usize] * vals[k];
+        let (chains, diag, off, n_val) = (&self.chains, &self.diag, self.off, self.n_val);
+        for_each_run(chains, out, |first, runs, base, out| {
+            for (k, &(a, b)) in runs.iter().enumerate() {
+                let (a, b) = (a as usize, b as usize);
+                if a == b {
+                    continue;
+                }
+                let s = first + k;
+                let o = &mut out[a - base..b - base];
+                o.iter_mut().for_each(|v| *v = Vec3::ZERO);
+                let nb = self.neighbours(s);
+                let split = nb.partition_point(|&t| (t as usize) < s);
+                let across = |o: &mut [Vec3], t: u32| {
+                    let (ta, tb) = chains[t as usize];
+                    let m = ((tb - ta) as usize).min(b - a);
+                    for (v, xt) in o[..m].iter_mut().zip(&x[ta as usize..ta as usize + m]) {
+                        *v += *xt * n_val;
+                    }
+                };
+                for &t in &nb[..split] {
+                    across(o, t);
+                }
+                for (i, v) in o.iter_mut().enumerate() {
+                    let f = a + i;
+                    if f > a {
+                        *v += x[f - 1] * off;
+                    }
+                    *v += x[f] * diag[f];
+                    if f + 1 < b {
+                        *v += x[f + 1] * off;
+                    }
+                }
+                for &t in &nb[split..] {
+                    across(o, t);
+                }
             }
-            *o = acc;
         });
     }
 
     /// Applies the block-tridiagonal preconditioner: `z = T⁻¹ r`, the strands in parallel (each
     /// strand's solve is the same arithmetic whichever thread runs it).
     fn precondition(cp: &[f32], inv_den: &[f32], off: f32, chains: &[(u32, u32)], r: &[Vec3], z: &mut [Vec3]) {
-        // The chains are contiguous and in order: cut `z` at chain ends into runs of about
-        // `RUN` slots, one task each.
-        const RUN: usize = 1 << 14;
-        type Run<'a> = (&'a [(u32, u32)], usize, &'a mut [Vec3]);
-        let mut runs: Vec<Run> = Vec::new();
-        let (mut rest, mut base, mut i) = (z, 0usize, 0usize);
-        while i < chains.len() {
-            let first = i;
-            i += 1;
-            while i < chains.len() && chains[i].1 as usize - base <= RUN {
-                i += 1;
-            }
-            let end = chains[i - 1].1 as usize;
-            let (head, tail) = std::mem::take(&mut rest).split_at_mut(end - base);
-            runs.push((&chains[first..i], base, head));
-            (rest, base) = (tail, end);
-        }
-        runs.into_par_iter().for_each(|(chains, base, z)| {
+        for_each_run(chains, z, |_, chains, base, z| {
             for &(a, b) in chains {
                 let (a, b) = (a as usize, b as usize);
                 if a == b {
@@ -334,6 +360,31 @@ impl Reparam {
     }
 }
 
+/// Calls `f(first strand, chains, first slot, slots)` in parallel over runs of whole strands of
+/// about `RUN` free slots each (the chains are contiguous and in order, so `v` is cut at chain
+/// ends).
+fn for_each_run<F>(chains: &[(u32, u32)], v: &mut [Vec3], f: F)
+where
+    F: Fn(usize, &[(u32, u32)], usize, &mut [Vec3]) + Sync,
+{
+    const RUN: usize = 1 << 14;
+    type Run<'a> = (usize, &'a [(u32, u32)], usize, &'a mut [Vec3]);
+    let mut runs: Vec<Run> = Vec::new();
+    let (mut rest, mut base, mut i) = (v, 0usize, 0usize);
+    while i < chains.len() {
+        let first = i;
+        i += 1;
+        while i < chains.len() && chains[i].1 as usize - base <= RUN {
+            i += 1;
+        }
+        let end = chains[i - 1].1 as usize;
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(end - base);
+        runs.push((first, &chains[first..i], base, head));
+        (rest, base) = (tail, end);
+    }
+    runs.into_par_iter().for_each(|(first, chains, base, v)| f(first, chains, base, v));
+}
+
 fn dot(a: &[Vec3], b: &[Vec3]) -> DVec3 {
     let mut acc = DVec3::ZERO;
     for (x, y) in a.iter().zip(b) {
@@ -395,6 +446,62 @@ mod tests {
             let (a, c) = (dot(&mx, &y), dot(&x, &my));
             assert!((a - c).abs().max_element() < 1e-3 * a.abs().max_element().max(1.0));
         }
+    }
+
+    /// `apply` is `(I + λL)_ff` as the module doc defines it: the matrix built densely from the
+    /// definition (chain edges of weight 1, N edges of weight w between point j of tied strands,
+    /// roots removed) times a vector, against `apply`; and `nnz` counts its non-zeros.
+    #[test]
+    fn apply_is_the_matrix_of_the_definition() {
+        let (pts, offsets) = strands();
+        let (lambda, w, k) = (7.0f32, 0.3f32, 3);
+        let m = Reparam::new(
+            &pts,
+            &offsets,
+            &LaplacianParams { lambda, k_neighbors: k, neighbor_weight: w, key: KnnKey::Root },
+        );
+        let n = pts.len();
+        let mut l = vec![vec![0.0f64; n]; n];
+        let mut edge = |i: usize, j: usize, wt: f64| {
+            l[i][i] += wt;
+            l[j][j] += wt;
+            l[i][j] -= wt;
+            l[j][i] -= wt;
+        };
+        for s in 0..offsets.len() - 1 {
+            for i in offsets[s]..offsets[s + 1] - 1 {
+                edge(i, i + 1, 1.0);
+            }
+        }
+        let pairs = neighbor_pairs(&pts, &offsets, k, KnnKey::Root);
+        assert!(pairs.len() >= 12, "every strand has neighbours");
+        for &(a, b) in &pairs {
+            let (oa, ob) = (offsets[a as usize], offsets[b as usize]);
+            let len = (offsets[a as usize + 1] - oa).min(offsets[b as usize + 1] - ob);
+            for j in 1..len {
+                edge(oa + j, ob + j, w as f64);
+            }
+        }
+        let free: Vec<usize> = (0..n).filter(|i| !offsets.contains(i)).collect();
+        assert_eq!(m.free().iter().map(|&i| i as usize).collect::<Vec<_>>(), free);
+        let x: Vec<Vec3> =
+            (0..free.len()).map(|i| Vec3::new((i as f32 * 1.3).sin(), (i as f32).cos(), i as f32 * 0.01)).collect();
+        let mut got = vec![Vec3::ZERO; free.len()];
+        m.apply(&x, &mut got);
+        let mut nnz = 0;
+        for (r, &gi) in free.iter().enumerate() {
+            let mut want = x[r].as_dvec3();
+            for (c, &gj) in free.iter().enumerate() {
+                want += x[c].as_dvec3() * (lambda as f64 * l[gi][gj]);
+                nnz += usize::from(gi == gj || l[gi][gj] != 0.0);
+            }
+            assert!(
+                (got[r].as_dvec3() - want).length() < 1e-4 * want.length().max(1.0),
+                "row {r}: {} vs {want}",
+                got[r]
+            );
+        }
+        assert_eq!(m.nnz(), nnz);
     }
 
     /// The preconditioner's strands run in parallel in runs cut at strand ends: over many runs,
