@@ -2,11 +2,9 @@
 //! guides first, with the children following them through [`ChildMap`] and the children's render
 //! sending gradients back to the guides; then every child on its own, with N tying neighbours.
 //!
-//! Per step: pick `views_per_step` views at random (seeded), render the strands in each (rayon
-//! over views, in rounds of as many views as threads, each round's views sharing the renderers
-//! of a pool: a renderer holds ~130 bytes per segment, 1.3 GB for 50,000 children of 200 points),
-//! take ∂(L_m + L_o)/∂points from the renderer's backward
-//! pass, add the regularizers, map the gradient to u (`M⁻¹ g`, [`Reparam`]), take an Adam step in u
+//! Per step: pick `views_per_step` views at random (seeded), render the strands in each (one view
+//! after the other, each render parallel inside; see [`Evaluator`]), take ∂(L_m + L_o)/∂points
+//! from the renderer's backward pass, add the regularizers, map the gradient to u (`M⁻¹ g`, [`Reparam`]), take an Adam step in u
 //! and move the points by `M⁻¹ Δu`. Roots never move. Every `project_every` steps and at the end,
 //! points inside the head are pushed out. [`finalize`] makes the output simulation-ready: roots on
 //! the scalp, even segment lengths, no point inside the head.
@@ -23,11 +21,10 @@ use super::reparam::{LaplacianParams, Reparam};
 use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
 
-/// One view slot of a step: its buffers (the renderer and the gradient buffer come from the
-/// pool).
+/// One view slot of a step: what is kept of its render (the renderer and the gradient buffer
+/// are shared by the views).
 #[derive(Debug)]
 struct Slot {
-    d_image: Image,
     /// The hard raster's ids of the slot's view after the last evaluation.
     ids: Vec<u32>,
 }
@@ -65,15 +62,19 @@ fn segments(offsets: &[usize]) -> Vec<[u32; 2]> {
 
 /// The objective of one stage: renders the strands (or the children that follow them) in some
 /// views and returns the terms `L_m`, `L_o` (averaged over the views) and the regularizers, with the
-/// gradient of their sum with respect to the optimized points. Owns one renderer per thread (at
-/// most one per view slot), shared by the views in rounds.
+/// gradient of their sum with respect to the optimized points.
+///
+/// One renderer renders the views one after the other, each view's render and backward pass
+/// parallel inside (over bands of rows and over segments). A renderer holds ~130 bytes per
+/// segment, 1 GB for 50,000 children of ~160 points; on the colours straight capture a second
+/// renderer, rendering a second view at the same time, added 1.2 GB and saved no time.
 #[derive(Debug)]
 pub struct Evaluator {
     slots: Vec<Slot>,
-    renderers: Vec<Renderer>,
-    /// One gradient per renderer: a round's views' gradients, added to `g_render` in view order
-    /// after the round.
-    grads: Vec<Vec<Vec3>>,
+    renderer: Renderer,
+    d_image: Image,
+    /// One view's gradient, added to `g_render` before the next view.
+    grad: Vec<Vec3>,
     segs: Vec<[u32; 2]>,
     render_pts: Vec<Vec3>,
     g_render: Vec<Vec3>,
@@ -178,11 +179,11 @@ impl Evaluator {
         };
         let n_render = *render_offsets.last().unwrap_or(&0);
         let per_step = opts.views_per_step.clamp(1, targets.views.len().max(1));
-        let pool = per_step.min(rayon::current_num_threads().max(1));
         Self {
-            slots: (0..per_step).map(|_| Slot { d_image: Image::default(), ids: Vec::new() }).collect(),
-            renderers: (0..pool).map(|_| Renderer::new(AaMethod::Ours)).collect(),
-            grads: vec![Vec::new(); pool],
+            slots: (0..per_step).map(|_| Slot { ids: Vec::new() }).collect(),
+            renderer: Renderer::new(AaMethod::Ours),
+            d_image: Image::default(),
+            grad: Vec::new(),
             segs: segments(&render_offsets),
             render_pts: vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }],
             g_render: vec![Vec3::ZERO; n_render],
@@ -221,39 +222,27 @@ impl Evaluator {
         let pts: &[Vec3] = if map.is_some() { &self.render_pts } else { x };
         let views = &views[..views.len().min(self.slots.len())];
         let (segs, settings) = (&self.segs, self.settings);
-        // Rounds of as many views as renderers; each view's gradient stays in its renderer's
-        // buffer until the round ends, and the buffers are added in view order, so the result does
-        // not depend on the thread count.
+        // The views in order, each view's gradient added before the next: the result does not
+        // depend on the thread count.
         let inv_v = 1.0 / views.len().max(1) as f32;
         self.g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
-        let mut losses: Vec<Result<LossTerms, DrError>> = Vec::with_capacity(views.len());
-        let round = self.renderers.len().max(1);
-        for (slots, vs) in self.slots[..views.len()].chunks_mut(round).zip(views.chunks(round)) {
-            let done: Vec<Result<LossTerms, DrError>> = slots
-                .par_iter_mut()
-                .zip(self.renderers.par_iter_mut().zip(self.grads.par_iter_mut()))
-                .zip(vs.par_iter())
-                .map(|((slot, (renderer, grad)), &v)| {
-                    let view = &targets.views[v];
-                    renderer.forward(&view.camera, pts, segs, settings)?;
-                    let loss =
-                        image_loss(&renderer.aa.image, &renderer.buffers.depth, view, &opts.weights, &mut slot.d_image);
-                    slot.ids.clear();
-                    slot.ids.extend_from_slice(&renderer.buffers.ids);
-                    grad.clear();
-                    grad.resize(pts.len(), Vec3::ZERO);
-                    renderer.backward(&view.camera, pts, &slot.d_image, grad)?;
-                    Ok(loss)
-                })
-                .collect();
-            losses.extend(done);
-            for grad in &self.grads[..vs.len()] {
-                self.g_render.par_iter_mut().zip(grad).with_min_len(1 << 16).for_each(|(g, s)| *g += *s * inv_v);
-            }
+        let mut losses: Vec<LossTerms> = Vec::with_capacity(views.len());
+        let (renderer, grad, d_image) = (&mut self.renderer, &mut self.grad, &mut self.d_image);
+        for (slot, &v) in self.slots.iter_mut().zip(views) {
+            let view = &targets.views[v];
+            renderer.forward(&view.camera, pts, segs, settings)?;
+            let loss = image_loss(&renderer.aa.image, &renderer.buffers.depth, view, &opts.weights, d_image);
+            slot.ids.clear();
+            slot.ids.extend_from_slice(&renderer.buffers.ids);
+            grad.clear();
+            grad.resize(pts.len(), Vec3::ZERO);
+            renderer.backward(&view.camera, pts, d_image, grad)?;
+            losses.push(loss);
+            self.g_render.par_iter_mut().zip(&*grad).with_min_len(1 << 16).for_each(|(g, s)| *g += *s * inv_v);
         }
         let mut loss = LossTerms::default();
         for l in losses {
-            loss += l? * inv_v as f64;
+            loss += l * inv_v as f64;
         }
         match map {
             Some(m) => {

@@ -21,6 +21,12 @@
 //! a 3D graph (scalp 2D × strand index), whose Cholesky factor fills in heavily for 50,000 children,
 //! and it needs no new dependency. Dot products are summed in f64 in a fixed order, so results do
 //! not depend on the thread count.
+//!
+//! Memory and speed: `M` is held as each strand's neighbour list and one diagonal value per point
+//! (its other entries are `-λ` and `-λw`), and the strands are laid out in the Morton order of
+//! their N key point, so that the neighbours a product `M p` reads are near in memory. Each CG
+//! iteration is three parallel passes over runs of whole strands (`cargo bench -p hairrecon-recon
+//! --bench reparam`).
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -60,9 +66,12 @@ pub struct Reparam {
     free: Vec<u32>,
     /// Free slot of each global point, `u32::MAX` for roots.
     slot: Vec<u32>,
-    /// Free-slot ranges per strand.
+    /// Free-slot ranges per strand, the strands in the solver's spatial order (a strand's
+    /// "position"); the slots follow that order.
     chains: Vec<(u32, u32)>,
-    /// The strands N ties each strand to, ascending: strand `s`'s are
+    /// The parallel work items: runs of whole strands of about [`RUN`] free slots each.
+    runs: Vec<Run>,
+    /// The strands N ties each strand to (positions), ascending: position `s`'s are
     /// `adj[adj_ptr[s]..adj_ptr[s + 1]]`.
     adj_ptr: Vec<u32>,
     adj: Vec<u32>,
@@ -121,10 +130,19 @@ impl Reparam {
         let n = points.len();
         let ns = offsets.len().saturating_sub(1);
         let lambda = params.lambda.max(0.0);
+        // The strands in a spatial order, so that the strands N ties together lie near each
+        // other in memory: chains, runs and neighbour lists index strands by their position in
+        // `order`.
+        let order = spatial_order(points, offsets, params.key);
+        let mut pos = vec![0u32; ns];
+        for (k, &s) in order.iter().enumerate() {
+            pos[s as usize] = k as u32;
+        }
         let mut slot = vec![u32::MAX; n];
         let mut free = Vec::with_capacity(n.saturating_sub(ns));
         let mut chains = Vec::with_capacity(ns);
-        for s in 0..ns {
+        for &s in &order {
+            let s = s as usize;
             let a = free.len() as u32;
             for i in offsets[s] + 1..offsets[s + 1] {
                 slot[i] = free.len() as u32;
@@ -147,12 +165,11 @@ impl Reparam {
         } else {
             Vec::new()
         };
-        // Each strand's neighbours, ascending (the pairs are sorted, so `b`s arrive in order for
-        // each `a`; sorting per strand orders the `a`s that come before them).
+        // Each strand's neighbours (positions in `order`), ascending.
         let mut count = vec![0u32; ns + 1];
         for &(a, b) in &pairs {
-            count[a as usize] += 1;
-            count[b as usize] += 1;
+            count[pos[a as usize] as usize] += 1;
+            count[pos[b as usize] as usize] += 1;
         }
         let mut adj_ptr = Vec::with_capacity(ns + 1);
         let mut acc = 0u32;
@@ -170,12 +187,13 @@ impl Reparam {
                 degree[offsets[a as usize] + j] += w;
                 degree[offsets[b as usize] + j] += w;
             }
-            adj[fill[a as usize] as usize] = b;
-            fill[a as usize] += 1;
-            adj[fill[b as usize] as usize] = a;
-            fill[b as usize] += 1;
+            let (pa, pb) = (pos[a as usize] as usize, pos[b as usize] as usize);
+            adj[fill[pa] as usize] = pb as u32;
+            fill[pa] += 1;
+            adj[fill[pb] as usize] = pa as u32;
+            fill[pb] += 1;
         }
-        drop((fill, count, pairs));
+        drop((fill, count, pairs, pos));
         for s in 0..ns {
             adj[adj_ptr[s] as usize..adj_ptr[s + 1] as usize].sort_unstable();
         }
@@ -196,6 +214,7 @@ impl Reparam {
         Self {
             free,
             slot,
+            runs: runs(&chains),
             chains,
             adj_ptr,
             adj,
@@ -245,7 +264,7 @@ impl Reparam {
         along + across
     }
 
-    /// The strands N ties strand `s` to, ascending.
+    /// The strands N ties the strand at position `s` to (their positions), ascending.
     pub fn neighbours(&self, s: usize) -> &[u32] {
         &self.adj[self.adj_ptr[s] as usize..self.adj_ptr[s + 1] as usize]
     }
@@ -253,67 +272,83 @@ impl Reparam {
     /// `out = M x`. Each row sums its terms in the order of its columns (the neighbours before
     /// the strand, the strand's own three, the neighbours after it), whatever the thread count.
     pub fn apply(&self, x: &[Vec3], out: &mut [Vec3]) {
-        let (chains, diag, off, n_val) = (&self.chains, &self.diag, self.off, self.n_val);
-        for_each_run(chains, out, |first, runs, base, out| {
-            for (k, &(a, b)) in runs.iter().enumerate() {
-                let (a, b) = (a as usize, b as usize);
-                if a == b {
-                    continue;
-                }
-                let s = first + k;
-                let o = &mut out[a - base..b - base];
-                o.iter_mut().for_each(|v| *v = Vec3::ZERO);
-                let nb = self.neighbours(s);
-                let split = nb.partition_point(|&t| (t as usize) < s);
-                let across = |o: &mut [Vec3], t: u32| {
-                    let (ta, tb) = chains[t as usize];
-                    let m = ((tb - ta) as usize).min(b - a);
-                    for (v, xt) in o[..m].iter_mut().zip(&x[ta as usize..ta as usize + m]) {
-                        *v += *xt * n_val;
-                    }
-                };
-                for &t in &nb[..split] {
-                    across(o, t);
-                }
-                for (i, v) in o.iter_mut().enumerate() {
-                    let f = a + i;
-                    if f > a {
-                        *v += x[f - 1] * off;
-                    }
-                    *v += x[f] * diag[f];
-                    if f + 1 < b {
-                        *v += x[f + 1] * off;
-                    }
-                }
-                for &t in &nb[split..] {
-                    across(o, t);
-                }
-            }
-        });
+        self.apply_dot(x, out);
     }
 
-    /// Applies the block-tridiagonal preconditioner: `z = T⁻¹ r`, the strands in parallel (each
-    /// strand's solve is the same arithmetic whichever thread runs it).
-    fn precondition(cp: &[f32], inv_den: &[f32], off: f32, chains: &[(u32, u32)], r: &[Vec3], z: &mut [Vec3]) {
-        for_each_run(chains, z, |_, chains, base, z| {
-            for &(a, b) in chains {
-                let (a, b) = (a as usize, b as usize);
-                if a == b {
-                    continue;
+    /// `out = M x`, and `x · out` per coordinate (summed per run, then over the runs in order).
+    fn apply_dot(&self, x: &[Vec3], out: &mut [Vec3]) -> DVec3 {
+        let (chains, diag, off, n_val) = (&self.chains, &self.diag, self.off, self.n_val);
+        let parts: Vec<DVec3> = self
+            .runs
+            .par_iter()
+            .zip(split_runs(&self.runs, out))
+            .map(|(run, out)| {
+                let base = run.slots.start;
+                for s in run.chains.clone() {
+                    let (a, b) = (chains[s].0 as usize, chains[s].1 as usize);
+                    if a == b {
+                        continue;
+                    }
+                    let o = &mut out[a - base..b - base];
+                    o.iter_mut().for_each(|v| *v = Vec3::ZERO);
+                    let nb = self.neighbours(s);
+                    let split = nb.partition_point(|&t| (t as usize) < s);
+                    let across = |o: &mut [Vec3], t: u32| {
+                        let (ta, tb) = chains[t as usize];
+                        let m = ((tb - ta) as usize).min(b - a);
+                        for (v, xt) in o[..m].iter_mut().zip(&x[ta as usize..ta as usize + m]) {
+                            *v += *xt * n_val;
+                        }
+                    };
+                    for &t in &nb[..split] {
+                        across(o, t);
+                    }
+                    for (i, v) in o.iter_mut().enumerate() {
+                        let f = a + i;
+                        if f > a {
+                            *v += x[f - 1] * off;
+                        }
+                        *v += x[f] * diag[f];
+                        if f + 1 < b {
+                            *v += x[f + 1] * off;
+                        }
+                    }
+                    for &t in &nb[split..] {
+                        across(o, t);
+                    }
                 }
-                z[a - base] = r[a] * inv_den[a];
-                for f in a + 1..b {
-                    z[f - base] = (r[f] - z[f - 1 - base] * off) * inv_den[f];
-                }
-                for f in (a..b - 1).rev() {
-                    z[f - base] -= z[f + 1 - base] * cp[f];
-                }
+                dot(&x[run.slots.clone()], out)
+            })
+            .collect();
+        parts.into_iter().sum()
+    }
+
+    /// The block-tridiagonal preconditioner on one run: `z = T⁻¹ r` for the run's strands (`r`
+    /// and `z` are the run's slots).
+    fn precondition_run(&self, run: &Run, r: &[Vec3], z: &mut [Vec3]) {
+        let (cp, inv_den, off, base) = (&self.cp, &self.inv_den, self.off, run.slots.start);
+        for &(a, b) in &self.chains[run.chains.clone()] {
+            let (a, b) = (a as usize, b as usize);
+            if a == b {
+                continue;
             }
-        });
+            z[a - base] = r[a - base] * inv_den[a];
+            for f in a + 1..b {
+                z[f - base] = (r[f - base] - z[f - 1 - base] * off) * inv_den[f];
+            }
+            for f in (a..b - 1).rev() {
+                z[f - base] -= z[f + 1 - base] * cp[f];
+            }
+        }
     }
 
     /// Solves `M x = b` by preconditioned conjugate gradients, starting from `x` as given (warm
     /// start). Stops at a relative residual of [`Reparam::tolerance`] per coordinate.
+    ///
+    /// Each iteration makes three parallel passes over the runs: `M p` with `p · M p`; the
+    /// update of `x` and `r` with the preconditioner and `r · z`, `r · r`; and the new `p`. Dot
+    /// products are summed in f64 per run and then over the runs in order, so the result does
+    /// not depend on the thread count.
     pub fn solve(&mut self, b: &[Vec3], x: &mut [Vec3]) {
         let n = self.free.len();
         debug_assert!(b.len() == n && x.len() == n);
@@ -322,35 +357,41 @@ impl Reparam {
         let mut p = std::mem::take(&mut self.p);
         let mut ap = std::mem::take(&mut self.ap);
         self.apply(x, &mut ap);
-        for i in 0..n {
-            r[i] = b[i] - ap[i];
-        }
-        let bn = dot(b, b);
+        let bn: DVec3 = self
+            .runs
+            .par_iter()
+            .map(|run| dot(&b[run.slots.clone()], &b[run.slots.clone()]))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .sum();
         let tol2 = bn * (self.tolerance as f64).powi(2);
-        Self::precondition(&self.cp, &self.inv_den, self.off, &self.chains, &r, &mut z);
-        p.copy_from_slice(&z);
-        let mut rz = dot(&r, &z);
-        let mut iters = 0;
-        loop {
-            let rr = dot(&r, &r);
-            if (rr.x <= tol2.x && rr.y <= tol2.y && rr.z <= tol2.z) || iters >= self.max_iterations {
-                break;
+        // r = b − M x, z = T⁻¹ r, and (r · z, r · r).
+        let (mut rz, mut rr) = self.update_and_precondition(&mut r, &mut z, None, |run, r, _| {
+            let s = run.slots.clone();
+            for ((r, b), ap) in r.iter_mut().zip(&b[s.clone()]).zip(&ap[s]) {
+                *r = *b - *ap;
             }
+        });
+        p.copy_from_slice(&z);
+        let mut iters = 0;
+        while !(rr.x <= tol2.x && rr.y <= tol2.y && rr.z <= tol2.z) && iters < self.max_iterations {
             iters += 1;
-            self.apply(&p, &mut ap);
-            let pap = dot(&p, &ap);
+            let pap = self.apply_dot(&p, &mut ap);
             let alpha = div(rz, pap).as_vec3();
-            x.par_iter_mut().zip(r.par_iter_mut()).zip(p.par_iter().zip(ap.par_iter())).with_min_len(4096).for_each(
-                |((x, r), (p, ap))| {
-                    *x += *p * alpha;
+            let (rz_new, rr_new) = self.update_and_precondition(&mut r, &mut z, Some(&mut *x), |run, r, x| {
+                let s = run.slots.clone();
+                if let Some(x) = x {
+                    for (x, p) in x.iter_mut().zip(&p[s.clone()]) {
+                        *x += *p * alpha;
+                    }
+                }
+                for (r, ap) in r.iter_mut().zip(&ap[s]) {
                     *r -= *ap * alpha;
-                },
-            );
-            Self::precondition(&self.cp, &self.inv_den, self.off, &self.chains, &r, &mut z);
-            let rz_new = dot(&r, &z);
+                }
+            });
             let beta = div(rz_new, rz).as_vec3();
-            rz = rz_new;
-            p.par_iter_mut().zip(z.par_iter()).with_min_len(4096).for_each(|(p, z)| *p = *z + *p * beta);
+            (rz, rr) = (rz_new, rr_new);
+            p.par_iter_mut().zip(z.par_iter()).with_min_len(1 << 14).for_each(|(p, z)| *p = *z + *p * beta);
         }
         self.last_iterations = iters;
         self.r = r;
@@ -358,19 +399,85 @@ impl Reparam {
         self.p = p;
         self.ap = ap;
     }
+
+    /// Per run: `update(run, r, x)` on the run's slots of `r` (and of `x`, when given), then
+    /// `z = T⁻¹ r` there; returns `(r · z, r · r)`.
+    fn update_and_precondition<U>(
+        &self,
+        r: &mut [Vec3],
+        z: &mut [Vec3],
+        x: Option<&mut [Vec3]>,
+        update: U,
+    ) -> (DVec3, DVec3)
+    where
+        U: Fn(&Run, &mut [Vec3], Option<&mut [Vec3]>) + Sync,
+    {
+        let xs: Vec<Option<&mut [Vec3]>> = match x {
+            Some(x) => split_runs(&self.runs, x).into_iter().map(Some).collect(),
+            None => self.runs.iter().map(|_| None).collect(),
+        };
+        let parts: Vec<(DVec3, DVec3)> = self
+            .runs
+            .par_iter()
+            .zip(split_runs(&self.runs, r))
+            .zip(split_runs(&self.runs, z))
+            .zip(xs)
+            .map(|(((run, r), z), x)| {
+                update(run, r, x);
+                self.precondition_run(run, r, z);
+                (dot(r, z), dot(r, r))
+            })
+            .collect();
+        parts.into_iter().fold((DVec3::ZERO, DVec3::ZERO), |(a, b), (c, d)| (a + c, b + d))
+    }
 }
 
-/// Calls `f(first strand, chains, first slot, slots)` in parallel over runs of whole strands of
-/// about `RUN` free slots each (the chains are contiguous and in order, so `v` is cut at chain
-/// ends).
-fn for_each_run<F>(chains: &[(u32, u32)], v: &mut [Vec3], f: F)
-where
-    F: Fn(usize, &[(u32, u32)], usize, &mut [Vec3]) + Sync,
-{
-    const RUN: usize = 1 << 14;
-    type Run<'a> = (usize, &'a [(u32, u32)], usize, &'a mut [Vec3]);
-    let mut runs: Vec<Run> = Vec::new();
-    let (mut rest, mut base, mut i) = (v, 0usize, 0usize);
+/// The strands sorted by the Morton code of their N key point (ties by index): strands near each
+/// other in space come near each other in the order.
+fn spatial_order(points: &[Vec3], offsets: &[usize], key: KnnKey) -> Vec<u32> {
+    let ns = offsets.len().saturating_sub(1);
+    let keys: Vec<Vec3> = (0..ns)
+        .map(|s| match key {
+            KnnKey::Root => points[offsets[s]],
+            KnnKey::Middle => points[offsets[s] + (offsets[s + 1] - offsets[s]) / 2],
+        })
+        .collect();
+    let (lo, hi) = keys.iter().fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), &k| (l.min(k), h.max(k)));
+    let scale = ((1u32 << 21) - 1) as f32 / (hi - lo).max_element().max(f32::MIN_POSITIVE);
+    let spread = |v: u64| {
+        // The 21 low bits of `v` moved to every third bit.
+        let mut v = v & 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        (v | v << 2) & 0x1249_2492_4924_9249
+    };
+    let code = |k: Vec3| {
+        let q = ((k - lo) * scale).max(Vec3::ZERO);
+        spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2
+    };
+    let mut order: Vec<(u64, u32)> =
+        keys.iter().enumerate().map(|(s, &k)| (if k.is_finite() { code(k) } else { u64::MAX }, s as u32)).collect();
+    order.sort_unstable();
+    order.into_iter().map(|(_, s)| s).collect()
+}
+
+/// Free slots per parallel work item of the solver.
+const RUN: usize = 1 << 14;
+
+/// A parallel work item: whole strands (`chains`, strand indices) holding about [`RUN`] free
+/// slots (`slots`).
+#[derive(Debug, Clone)]
+struct Run {
+    chains: std::ops::Range<usize>,
+    slots: std::ops::Range<usize>,
+}
+
+/// Cuts the strands into runs at strand ends (the chains are contiguous and in order).
+fn runs(chains: &[(u32, u32)]) -> Vec<Run> {
+    let mut runs = Vec::new();
+    let (mut base, mut i) = (0usize, 0usize);
     while i < chains.len() {
         let first = i;
         i += 1;
@@ -378,11 +485,22 @@ where
             i += 1;
         }
         let end = chains[i - 1].1 as usize;
-        let (head, tail) = std::mem::take(&mut rest).split_at_mut(end - base);
-        runs.push((first, &chains[first..i], base, head));
-        (rest, base) = (tail, end);
+        runs.push(Run { chains: first..i, slots: base..end });
+        base = end;
     }
-    runs.into_par_iter().for_each(|(first, chains, base, v)| f(first, chains, base, v));
+    runs
+}
+
+/// `v` cut into the runs' slot ranges.
+fn split_runs<'a>(runs: &[Run], v: &'a mut [Vec3]) -> Vec<&'a mut [Vec3]> {
+    let mut out = Vec::with_capacity(runs.len());
+    let mut rest = v;
+    for run in runs {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(run.slots.len());
+        out.push(head);
+        rest = tail;
+    }
+    out
 }
 
 fn dot(a: &[Vec3], b: &[Vec3]) -> DVec3 {
@@ -482,8 +600,12 @@ mod tests {
                 edge(oa + j, ob + j, w as f64);
             }
         }
-        let free: Vec<usize> = (0..n).filter(|i| !offsets.contains(i)).collect();
-        assert_eq!(m.free().iter().map(|&i| i as usize).collect::<Vec<_>>(), free);
+        // The free slots are the points that are not roots, in the solver's order.
+        let free: Vec<usize> = m.free().iter().map(|&i| i as usize).collect();
+        let mut sorted = free.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..n).filter(|i| !offsets.contains(i)).collect::<Vec<_>>());
+        assert!(free.iter().enumerate().all(|(f, &gi)| m.slot(gi) == Some(f)));
         let x: Vec<Vec3> =
             (0..free.len()).map(|i| Vec3::new((i as f32 * 1.3).sin(), (i as f32).cos(), i as f32 * 0.01)).collect();
         let mut got = vec![Vec3::ZERO; free.len()];
