@@ -65,18 +65,37 @@ impl Buffers {
     }
 }
 
-/// The pixel centres within the bounding box of `p` grown by `margin` pixels.
+/// The pixel centres within the bounding box of `p` grown by `margin` pixels (`None` when there
+/// are none, or when the box is not finite).
 #[inline]
 pub(crate) fn pixel_range_margin(p: &crate::screen::Prim, w: u32, h: u32, margin: f32) -> Option<[usize; 4]> {
     let bbox = p.bbox();
-    let x0 = (bbox[0] - margin).ceil().max(0.0);
-    let y0 = (bbox[1] - margin).ceil().max(0.0);
-    let x1 = (bbox[2] + margin).floor().min(w as f32 - 1.0);
-    let y1 = (bbox[3] + margin).floor().min(h as f32 - 1.0);
+    if !bbox.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let x0 = ceil_i(bbox[0] - margin).max(0);
+    let y0 = ceil_i(bbox[1] - margin).max(0);
+    let x1 = floor_i(bbox[2] + margin).min(w as i64 - 1);
+    let y1 = floor_i(bbox[3] + margin).min(h as i64 - 1);
     if x0 > x1 || y0 > y1 {
         return None;
     }
     Some([x0 as usize, y0 as usize, x1 as usize, y1 as usize])
+}
+
+/// `x.floor()` of a finite `x` as an integer, without a call to libm's `floorf` (which the
+/// baseline x86-64 target makes of `f32::floor`); `x` beyond ±2^62 saturates.
+#[inline]
+fn floor_i(x: f32) -> i64 {
+    let t = x as i64;
+    t - i64::from(x < t as f32)
+}
+
+/// `x.ceil()` of a finite `x` as an integer; see [`floor_i`].
+#[inline]
+fn ceil_i(x: f32) -> i64 {
+    let t = x as i64;
+    t + i64::from(x > t as f32)
 }
 
 #[inline]
@@ -102,7 +121,7 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
         let start = c * CHUNK;
         let end = (start + CHUNK).min(prims.len());
         for (i, p) in prims[start..end].iter().enumerate() {
-            if !p.valid {
+            if !p.valid() {
                 continue;
             }
             if let Some(r) = pixel_range_margin(p, w, h, 1.0) {
@@ -130,7 +149,7 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
                         for x in r[0]..=r[2] {
                             let c = Vec2::new(x as f32, y as f32);
                             let v = c - p.a;
-                            let t = v.dot(p.u) / p.len;
+                            let t = v.dot(p.u()) / p.len;
                             if !(0.0..=1.0).contains(&t) {
                                 continue;
                             }
@@ -176,7 +195,7 @@ pub fn rasterize(screen: &Screen, buf: &mut Buffers) {
 /// ∂L/∂(b − a) of a primitive, given ∂L/∂cos 2θ and ∂L/∂sin 2θ.
 #[inline]
 pub(crate) fn orient_grad(p: &crate::screen::Prim, gc: f32, gs: f32) -> Vec2 {
-    let d = p.u * p.len;
+    let d = p.u() * p.len;
     let l2 = p.len * p.len;
     let l4 = l2 * l2;
     // f = (dx² − dy²)/L², g = 2 dx dy / L².
@@ -215,6 +234,24 @@ pub fn attributes_backward(screen: &Screen, buf: &Buffers, d_attrs: &Image, grad
     for part in partial {
         for (s, g) in part {
             grads.dir[s as usize] += g;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The integer floor and ceiling are `f32::floor` and `f32::ceil` on negative, positive,
+    /// whole, tiny and large values.
+    #[test]
+    fn floor_and_ceil_without_libm_match_the_float_ones() {
+        let mut xs =
+            vec![0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 1e-30, -1e-30, 3.999_999_8, -3.999_999_8, 1e9, -1e9, 16_777_217.0];
+        xs.extend((-2000..2000).map(|i| i as f32 * 0.37 + 0.001 * (i % 7) as f32));
+        for x in xs {
+            assert_eq!(floor_i(x), x.floor() as i64, "floor {x}");
+            assert_eq!(ceil_i(x), x.ceil() as i64, "ceil {x}");
         }
     }
 }

@@ -53,7 +53,7 @@ impl Default for RasterSettings {
     }
 }
 
-/// One segment's screen primitive. Kept small (56 bytes): the rasterizer streams millions of them
+/// One segment's screen primitive. Kept small (44 bytes): the rasterizer streams millions of them
 /// per view and DR's steps are bound by that traffic (64 more bytes per primitive made a DR step
 /// 17% slower on the demo's capture, measured at commit b34ecd9), so the corners, the bounding
 /// box and the orientation are derived on use, by the same arithmetic each time.
@@ -63,11 +63,9 @@ pub struct Prim {
     pub a: Vec2,
     /// Second vertex in pixels.
     pub b: Vec2,
-    /// Unit direction of `b − a`.
-    pub u: Vec2,
-    /// Unit normal, `perp(u) = (−u.y, u.x)`.
+    /// Unit normal, `perp(u) = (−u.y, u.x)` of the unit direction `u` of `b − a` (see [`Prim::u`]).
     pub n: Vec2,
-    /// Length of `b − a` in pixels.
+    /// Length of `b − a` in pixels; 0 for an invalid primitive (see [`Prim::valid`]).
     pub len: f32,
     /// Half widths at `a` and at `b` (0 at `b` for triangles).
     pub hw0: f32,
@@ -75,10 +73,21 @@ pub struct Prim {
     /// Camera depths at `a` and `b`.
     pub z0: f32,
     pub z1: f32,
-    pub valid: bool,
 }
 
 impl Prim {
+    /// Unit direction of `b − a` (from the normal: `n = (−u.y, u.x)`, exactly).
+    #[inline]
+    pub fn u(&self) -> Vec2 {
+        Vec2::new(self.n.y, -self.n.x)
+    }
+
+    /// Whether the segment is drawn: both ends in front of the camera and apart.
+    #[inline]
+    pub fn valid(&self) -> bool {
+        self.len > 0.0
+    }
+
     /// Corner `k` of `a + n·hw0`, `b + n·hw1`, `b − n·hw1`, `a − n·hw0`; edge `k` joins corner `k`
     /// and `k + 1`.
     #[inline]
@@ -97,23 +106,20 @@ impl Prim {
         [self.corner(0), self.corner(1), self.corner(2), self.corner(3)]
     }
 
-    /// Pixel bounding box of the corners, `[xmin, ymin, xmax, ymax]`.
+    /// Pixel bounding box of the corners, `[xmin, ymin, xmax, ymax]`: the corners are
+    /// `a ± n·hw0` and `b ± n·hw1`, so each end's extent is `|n|·hw` (the same numbers as the
+    /// corners' own minimum and maximum).
     #[inline]
     pub fn bbox(&self) -> [f32; 4] {
-        let mut bbox = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
-        for c in self.corners() {
-            bbox[0] = bbox[0].min(c.x);
-            bbox[1] = bbox[1].min(c.y);
-            bbox[2] = bbox[2].max(c.x);
-            bbox[3] = bbox[3].max(c.y);
-        }
-        bbox
+        let (ea, eb) = (self.n.abs() * self.hw0.abs(), self.n.abs() * self.hw1.abs());
+        let (lo, hi) = ((self.a - ea).min(self.b - eb), (self.a + ea).max(self.b + eb));
+        [lo.x, lo.y, hi.x, hi.y]
     }
 
     /// `(cos 2θ, sin 2θ)` of the screen direction.
     #[inline]
     pub fn orient(&self) -> Vec2 {
-        let u = self.u;
+        let u = self.u();
         Vec2::new(u.x * u.x - u.y * u.y, 2.0 * u.x * u.y)
     }
 
@@ -121,7 +127,7 @@ impl Prim {
     #[inline]
     pub fn local(&self, x: Vec2) -> (f32, f32) {
         let v = x - self.a;
-        (v.dot(self.u) / self.len, v.dot(self.n))
+        (v.dot(self.u()) / self.len, v.dot(self.n))
     }
 
     /// Whether a point is inside (boundary included).
@@ -158,7 +164,7 @@ impl Prim {
         }
         let u = d / len;
         let n = Vec2::new(-u.y, u.x);
-        Prim { a, b, u, n, len, hw0, hw1, z0, z1, valid: true }
+        Prim { a, b, n, len, hw0, hw1, z0, z1 }
     }
 }
 
@@ -394,7 +400,7 @@ impl Screen {
         self.dir3.clear();
         if let Some(x) = points {
             self.dir3.par_extend(self.segs.par_iter().zip(self.prims.par_iter()).map(|(s, p)| {
-                if p.valid {
+                if p.valid() {
                     (x[s[1] as usize] - x[s[0] as usize]).normalize_or_zero()
                 } else {
                     Vec3::ZERO
@@ -412,7 +418,7 @@ impl Screen {
         out.hw.resize(self.pos.len(), 0.0);
         let tri = self.settings.shape == SegmentShape::Triangle;
         for (i, (p, s)) in self.prims.iter().zip(&self.segs).enumerate() {
-            if !p.valid {
+            if !p.valid() {
                 continue;
             }
             let gc = g.corners.get(i).copied().unwrap_or([Vec2::ZERO; 4]);
@@ -424,7 +430,8 @@ impl Screen {
             let gn = g03 * p.hw0 + g12 * p.hw1;
             // n = perp(u) = P u with P = [[0, −1], [1, 0]]: ∂L/∂u = Pᵀ ∂L/∂n.
             let gu = Vec2::new(gn.y, -gn.x);
-            let gd = (gu - p.u * p.u.dot(gu)) / p.len + gdir;
+            let u = p.u();
+            let gd = (gu - u * u.dot(gu)) / p.len + gdir;
             ga -= gd;
             gb += gd;
             let (ia, ib) = (s[0] as usize, s[1] as usize);
@@ -518,6 +525,23 @@ pub(crate) fn crossing(p0: Vec2, p1: Vec2, e0: Vec2, e1: Vec2) -> Option<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The box from the ends' extents is the corners' own box, for segments in every direction
+    /// and of unequal widths.
+    #[test]
+    fn the_bounding_box_is_the_corners_box() {
+        for k in 0..64 {
+            let t = k as f32 * 0.41;
+            let a = Vec2::new(10.0 + t.cos() * 3.0, -2.0 + t.sin());
+            let b = a + Vec2::new((t * 1.7).cos(), (t * 1.3).sin()) * (0.01 + k as f32 * 0.3);
+            let p = Prim::build(a, b, 0.1 + 0.01 * k as f32, 0.7 - 0.01 * k as f32, 1.0, 2.0);
+            let mut want = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+            for c in p.corners() {
+                want = [want[0].min(c.x), want[1].min(c.y), want[2].max(c.x), want[3].max(c.y)];
+            }
+            assert_eq!(p.bbox(), want, "segment {k}");
+        }
+    }
 
     #[test]
     fn line_distance_gradient_matches_finite_differences() {

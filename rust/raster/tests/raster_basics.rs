@@ -95,6 +95,6 @@ fn the_3d_direction_channels_hold_each_visible_segments_direction() {
 
 /// The primitive stays small: the rasterizer streams millions of them per view (see [`Prim`]).
 #[test]
-fn a_primitive_is_56_bytes() {
-    assert_eq!(std::mem::size_of::<hairrecon_raster::Prim>(), 56);
+fn a_primitive_is_44_bytes() {
+    assert_eq!(std::mem::size_of::<hairrecon_raster::Prim>(), 44);
 }

@@ -320,9 +320,11 @@ fn run_stage(
     let mut adam = Adam::new(nf, opts.uniform_adam);
     adam.quantile = opts.adam_quantile;
     let mut g_x = vec![Vec3::ZERO; x.len()];
+    // `g_free`: the gradient of the free points, then (once it is solved into `g_u`) Adam's step
+    // Δu, then the points pushed out of the head: one buffer of the free points' size for the
+    // three (50,000 children: ~96 MB each).
     let mut g_free = vec![Vec3::ZERO; nf];
     let mut g_u = vec![Vec3::ZERO; nf];
-    let mut delta_u = vec![Vec3::ZERO; nf];
     let mut delta_x = vec![Vec3::ZERO; nf];
     for it in 0..iterations {
         progress.check()?;
@@ -343,13 +345,14 @@ fn run_stage(
         } else {
             g_u.copy_from_slice(&g_free);
         }
-        adam.step(&g_u, stage_lr(opts, it, iterations), &mut delta_u);
+        let delta_u = &mut g_free;
+        adam.step(&g_u, stage_lr(opts, it, iterations), delta_u);
         if opts.reparam {
-            reparam.solve(&delta_u, &mut delta_x);
+            reparam.solve(delta_u, &mut delta_x);
             stats.cg_iterations += reparam.last_iterations;
             stats.solves += 1;
         } else {
-            delta_x.copy_from_slice(&delta_u);
+            delta_x.copy_from_slice(delta_u);
         }
         for (d, &i) in delta_x.iter().zip(&free) {
             x[i as usize] += *d;
