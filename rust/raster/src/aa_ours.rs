@@ -75,6 +75,9 @@ fn separating_edge(prims: &[Prim], cs: Vec2, cn: Vec2, ids: u32, idn: u32) -> Op
 /// Slots per pixel: the 8 neighbours, then the nearest uncovered primitive.
 const SLOTS: usize = 9;
 
+/// Columns per block of [`near_pass`]'s depth culling.
+const TILE: usize = 4;
+
 /// The attributes a primitive writes, in the channel layout of [`crate::rasterize`].
 #[inline]
 fn prim_attrs(screen: &Screen, prim: usize, nch: usize) -> [f32; 6] {
@@ -117,11 +120,25 @@ fn near_pass(screen: &Screen, buf: &Buffers, edges: &mut [u32], vals: &mut [f32]
         |(band, (edges, vals))| {
             let row0 = band * BAND;
             let row1 = row0 + edges.len() / (w * SLOTS);
+            // The deepest visible depth of each block of TILE columns of the band: a primitive
+            // behind it over all the blocks it touches fails the depth test at each of its pixels
+            // (its depth there is at least its nearer end's), so it is skipped whole.
+            let far: Vec<f32> = (0..w.div_ceil(TILE))
+                .map(|bx| {
+                    let (x0, x1) = (bx * TILE, ((bx + 1) * TILE).min(w));
+                    (row0..row1).flat_map(|y| &depth[y * w + x0..y * w + x1]).fold(0.0f32, |m, &d| m.max(d))
+                })
+                .collect();
             for chunk in bins {
                 let Some(list) = chunk.get(band) else { continue };
                 for &si in list {
                     let p = &prims[si as usize];
                     let Some(r) = pixel_range_margin(p, w as u32, h as u32, 1.0) else { continue };
+                    // 1e-5: the interpolated depth may round below the nearer end by an ulp.
+                    let near = p.z0.min(p.z1) * (1.0 - 1e-5);
+                    if near > 0.0 && far[r[0] / TILE..=r[2] / TILE].iter().all(|&f| near >= f) {
+                        continue;
+                    }
                     for y in r[1].max(row0)..=r[3].min(row1 - 1) {
                         for x in r[0]..=r[2] {
                             let i = y * w + x;
