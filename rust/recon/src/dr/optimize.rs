@@ -21,14 +21,6 @@ use super::reparam::{LaplacianParams, Reparam};
 use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
 
-/// One view slot of a step: what is kept of its render (the renderer and the gradient buffer
-/// are shared by the views).
-#[derive(Debug)]
-struct Slot {
-    /// The hard raster's ids of the slot's view after the last evaluation.
-    ids: Vec<u32>,
-}
-
 /// Seeded view picker (xorshift64*).
 #[derive(Debug)]
 struct Picker(u64);
@@ -70,7 +62,9 @@ fn segments(offsets: &[usize]) -> Vec<[u32; 2]> {
 /// renderer, rendering a second view at the same time, added 1.2 GB and saved no time.
 #[derive(Debug)]
 pub struct Evaluator {
-    slots: Vec<Slot>,
+    /// Per view slot of a step: the hard raster's ids of the slot's view after the last
+    /// evaluation.
+    ids: Vec<Vec<u32>>,
     renderer: Renderer,
     d_image: Image,
     /// One view's gradient, added to `g_render` before the next view.
@@ -180,7 +174,7 @@ impl Evaluator {
         let n_render = *render_offsets.last().unwrap_or(&0);
         let per_step = opts.views_per_step.clamp(1, targets.views.len().max(1));
         Self {
-            slots: (0..per_step).map(|_| Slot { ids: Vec::new() }).collect(),
+            ids: vec![Vec::new(); per_step],
             renderer: Renderer::new(AaMethod::Ours),
             d_image: Image::default(),
             grad: Vec::new(),
@@ -201,7 +195,7 @@ impl Evaluator {
     /// The hard raster's ids (segment + 1, 0 = background) of view slot `slot` after the last
     /// [`Evaluator::evaluate`]: where they stay the same, the loss is smooth.
     pub fn hard_ids(&self, slot: usize) -> &[u32] {
-        &self.slots[slot].ids
+        &self.ids[slot]
     }
 
     /// The loss terms in the given views (at most as many as `views_per_step`); `g_x` is overwritten
@@ -220,29 +214,25 @@ impl Evaluator {
             m.forward(x, &mut self.render_pts);
         }
         let pts: &[Vec3] = if map.is_some() { &self.render_pts } else { x };
-        let views = &views[..views.len().min(self.slots.len())];
+        let views = &views[..views.len().min(self.ids.len())];
         let (segs, settings) = (&self.segs, self.settings);
         // The views in order, each view's gradient added before the next: the result does not
         // depend on the thread count.
         let inv_v = 1.0 / views.len().max(1) as f32;
         self.g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
-        let mut losses: Vec<LossTerms> = Vec::with_capacity(views.len());
+        let mut loss = LossTerms::default();
         let (renderer, grad, d_image) = (&mut self.renderer, &mut self.grad, &mut self.d_image);
-        for (slot, &v) in self.slots.iter_mut().zip(views) {
+        for (ids, &v) in self.ids.iter_mut().zip(views) {
             let view = &targets.views[v];
             renderer.forward(&view.camera, pts, segs, settings)?;
-            let loss = image_loss(&renderer.aa.image, &renderer.buffers.depth, view, &opts.weights, d_image);
-            slot.ids.clear();
-            slot.ids.extend_from_slice(&renderer.buffers.ids);
+            let view_loss = image_loss(&renderer.aa.image, &renderer.buffers.depth, view, &opts.weights, d_image);
+            ids.clear();
+            ids.extend_from_slice(&renderer.buffers.ids);
             grad.clear();
             grad.resize(pts.len(), Vec3::ZERO);
             renderer.backward(&view.camera, pts, d_image, grad)?;
-            losses.push(loss);
+            loss += view_loss * inv_v as f64;
             self.g_render.par_iter_mut().zip(&*grad).with_min_len(1 << 16).for_each(|(g, s)| *g += *s * inv_v);
-        }
-        let mut loss = LossTerms::default();
-        for l in losses {
-            loss += l * inv_v as f64;
         }
         match map {
             Some(m) => {
