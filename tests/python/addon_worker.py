@@ -411,6 +411,7 @@ def task_install(p):
 
 def task_pipeline(p):
     out = {"install": install(p.get("zip"))}
+    interchange = None
     import hairrecon
 
     clear_scene()
@@ -536,6 +537,13 @@ def task_pipeline(p):
             exp[ext] = e
         res, err = run_op(bpy.ops.hairrecon.export_hair, filepath=str(Path(p["workdir"]) / "export.abc"))
         exp[".abc"] = {"result": res, "error": err}
+        # Blender's own Alembic and USD exporters on the same object; read back at the end of the task
+        interchange = {"strands": curves_world(target), "radius": point_radius(target)}
+        for ext, op, kw in ((".abc", bpy.ops.wm.alembic_export, {"selected": True}),
+                            (".usdc", bpy.ops.wm.usd_export, {"selected_objects_only": True})):
+            f = Path(p["workdir"]) / f"interchange{ext}"
+            res, err = run_op(op, filepath=str(f), **kw)
+            interchange[ext] = {"file": str(f), "result": res, "error": err}
         out["export"] = exp
     if len(runs) == 2 and not runs[-1]["error"]:
         # undo (the operator has bl_options UNDO) takes the second result away again
@@ -554,6 +562,54 @@ def task_pipeline(p):
         out["saved"] = p["save_blend"]
     for r in runs:
         r.pop("before", None)
+    if interchange is not None:
+        out["interchange"] = read_back_interchange(interchange)
+    return out
+
+
+def curves_world(ob) -> tuple[np.ndarray, np.ndarray]:
+    """A Curves object's points in world space and its strands' point counts."""
+    cv = ob.data
+    pos = np.empty(len(cv.points) * 3, np.float32)
+    cv.attributes["position"].data.foreach_get("vector", pos)
+    m = np.array(ob.matrix_world, np.float64)
+    counts = np.array([c.points_length for c in cv.curves], np.int64)
+    return pos.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3], counts
+
+
+def point_radius(ob) -> np.ndarray | None:
+    """A Curves object's per-point radius (m), or None without one."""
+    a = ob.data.attributes.get("radius")
+    if a is None:
+        return None
+    r = np.empty(len(a.data), np.float32)
+    a.data.foreach_get("value", r)
+    return r
+
+
+def read_back_interchange(interchange: dict) -> dict:
+    """Imports each exported Alembic/USD file into an empty scene and compares its hair with what was
+    exported: strand and point counts, the largest point deviation in world space (m)."""
+    world, counts = interchange["strands"]
+    radius = interchange["radius"]
+    out = {}
+    for ext, op in ((".abc", "alembic_import"), (".usdc", "usd_import")):
+        e = dict(interchange[ext])
+        if not e["error"]:
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            res, err = run_op(getattr(bpy.ops.wm, op), filepath=e["file"])
+            e.update(import_result=res, import_error=err)
+            got = [o for o in bpy.context.scene.objects if o.type == "CURVES"]
+            e["objects"] = [(o.name, o.type) for o in bpy.context.scene.objects]
+            if len(got) == 1:
+                w, c = curves_world(got[0])
+                r = point_radius(got[0])
+                e.update(curves=int(len(c)), points=int(len(w)), counts_equal=bool(np.array_equal(c, counts)),
+                         max_diff_m=float(np.abs(w - world).max()) if w.shape == world.shape else None,
+                         radius_max_diff_m=float(np.abs(r - radius).max()) if r is not None and r.shape == radius.shape
+                         else None)
+        out[ext] = e
+    out["curves"], out["points"] = int(len(counts)), int(len(world))
     return out
 
 

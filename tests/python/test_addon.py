@@ -359,6 +359,21 @@ def test_export_hair_writes_what_blender_holds(pipeline):
     assert exp[".abc"]["error"] and "Alembic" in exp[".abc"]["error"]
 
 
+def test_alembic_and_usd_round_trips_keep_every_strand_and_point(pipeline):
+    """Blender's own exporters (what a studio hands to Houdini, Maya or Unreal), read back by Blender's
+    importers into an empty scene: the same strands, each with its points, within 1e-6 m in world space, and
+    their radii."""
+    inter = pipeline["interchange"]
+    assert inter["curves"] == SMALL["children"] and inter["points"] > inter["curves"]
+    for ext in (".abc", ".usdc"):
+        e = inter[ext]
+        assert e["error"] is None and e.get("import_error") is None, (ext, e)
+        assert e.get("curves") == inter["curves"] and e["points"] == inter["points"] and e["counts_equal"], (ext, e)
+        assert e["max_diff_m"] is not None and e["max_diff_m"] <= 1e-6, (ext, e)
+        # the strands' widths (the tapering radius the extension gives them) come back too
+        assert e["radius_max_diff_m"] is not None and e["radius_max_diff_m"] <= 1e-9, (ext, e)
+
+
 def test_cancel_leaves_the_scene_unchanged(extension_zip, test_capture, tmp_path):
     out = run_worker("cancel", tmp_path / "user", zip=str(extension_zip), capture=str(test_capture),
                      cancel_after=0.1, **SMALL)
