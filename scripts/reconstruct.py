@@ -15,6 +15,8 @@ the .blend (Hair panel) or the overrides below, and writes into DIR:
     render.png          with --render: a Cycles picture of the result from a scene camera (with
                         --render-before and --render-gt, the strands before DR and the ground truth
                         the same way; --render-pair puts them side by side)
+    physics.json        with --physics: Test Hair Physics's measures (the strands, and the ground truth with
+                        --gt-strands), as scripts/physics_check.py prints them
     capture/, result/   the capture folder written from the scene and the library's own output
                         (result/init_strands.hair: the strands before DR; result/loss.csv, loss.png)
 
@@ -80,6 +82,10 @@ def parse_args(argv):
     ap.add_argument("--render-fit", type=float, default=0.0,
                     help="frame the head and hair: a picture camera from the chosen camera's side, at a distance "
                          "where they fill this share of the picture height (e.g. 0.8; 0 = the camera as it is)")
+    ap.add_argument("--physics", type=Path,
+                    help="then run Test Hair Physics on the strands (and on --gt-strands, the same way) and write its "
+                         "measures to this JSON (scripts/physics_check.py does it for a saved scene)")
+    ap.add_argument("--physics-strands", type=int, default=400, help="strands simulated by --physics (default 400)")
     return ap.parse_args(argv)
 
 
@@ -467,6 +473,24 @@ def run(a) -> dict:
                 if a.render_gt is not None:
                     panels.insert(0, (a.render_gt, "ground truth"))
                 summary["render_pair"] = render_pair(bpy, panels, a.render_pair)
+    if a.physics is not None:
+        sys.path.insert(0, str(ROOT / "scripts"))
+        import physics_check
+
+        physics = importlib.import_module(f"{package}.physics")
+        strands = next(o for o in hair if not o.name.endswith("Guides"))
+        gt_strands = hr.read_strands(str(a.gt_strands)) if a.gt_strands is not None else None
+        settings = physics.PhysicsSettings(strands=a.physics_strands)
+        try:
+            results, checks = physics_check.simulate(bpy, package, strands, gt_strands, settings)
+        except physics_check.Failure as e:  # the module's own copy of Failure
+            raise Failure(f"--physics: {e}") from None
+        for c in checks:
+            c.remove()
+        print(physics_check.table(results), flush=True)
+        a.physics.parent.mkdir(parents=True, exist_ok=True)
+        a.physics.write_text(json.dumps({"blend": summary["saved"], "settings": vars(settings), "results": results}, indent=1))
+        summary["physics"] = {"file": str(a.physics), **{k: v["ok"] for k, v in results.items()}}
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 

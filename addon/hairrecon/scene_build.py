@@ -42,6 +42,9 @@ class Created:
                 (bpy.types.Image, bpy.data.images),
                 (bpy.types.Collection, bpy.data.collections),
                 (bpy.types.NodeTree, bpy.data.node_groups),
+                (bpy.types.ParticleSettings, bpy.data.particles),
+                (bpy.types.Action, bpy.data.actions),
+                (bpy.types.Scene, bpy.data.scenes),
             ):
                 try:
                     if isinstance(db, kind):

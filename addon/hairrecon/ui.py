@@ -70,6 +70,9 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
             row = layout.row(align=True)
             row.operator("hairrecon.fit_head", icon="USER")
             row.operator("hairrecon.reconstruct", icon="CURVES")
+        ob = context.active_object
+        if ob is not None and ob.type == "CURVES":
+            layout.operator("hairrecon.test_physics", icon="PHYSICS")
         row = layout.row(align=True)
         row.operator("hairrecon.import_capture", text="Import Capture", icon="IMPORT")
         row.operator("hairrecon.export_hair", text="Export Hair", icon="EXPORT")

@@ -398,7 +398,7 @@ def task_install(p):
     out = install(p["zip"])
     out["panels"] = [n for n in ("HAIRRECON_PT_reconstruct", "HAIRRECON_PT_advanced") if hasattr(bpy.types, n)]
     out["panel_category"] = getattr(getattr(bpy.types, "HAIRRECON_PT_reconstruct", None), "bl_category", None)
-    out["operators"] = [n for n in ("reconstruct", "import_capture", "export_hair") if hasattr(bpy.ops.hairrecon, n)
+    out["operators"] = [n for n in ("reconstruct", "import_capture", "export_hair", "test_physics") if hasattr(bpy.ops.hairrecon, n)
                         and bpy.ops.hairrecon.__getattribute__(n).idname() == f"HAIRRECON_OT_{n}"]
     # quality presets fill in the counts; editing a count switches to Custom
     s = bpy.context.scene.hairrecon
@@ -552,6 +552,13 @@ def task_pipeline(p):
         after = snapshot()
         out["undo"] = {"restored": after == before_second,
                        "objects_left": sorted(set(after["objects"]) - set(out["import"]["snapshot"]["objects"]))}
+    if runs and not runs[0]["error"]:
+        # Test Hair Physics on a reconstruction that is left, and on the ground truth (worker_physics.py)
+        import worker_physics
+
+        hair = [o for o in bpy.context.scene.objects if o.type == "CURVES" and not o.name.endswith("Guides") and o.data.surface]
+        if hair:
+            out["physics"] = worker_physics.physics_checks(pkg.__name__, Path(p["capture"]), hair[0], run_op)
     if p.get("save_blend"):
         # a scene for the batch-script test: the capture imported, settings made, no results, and
         # a "scalp" vertex group on the head (the batch test reconstructs with it)

@@ -209,7 +209,7 @@ def test_extension_zip_layout_and_validation(extension_zip):
     wheels = [n for n in names if n.startswith("wheels/") and n.endswith(".whl")]
     assert len(wheels) == 1 and "abi3" in wheels[0], names
     assert f'wheels = ["./{wheels[0]}"]' in manifest
-    for f in ("__init__.py", "operators.py", "ui.py", "core/camera.py", "core/capture.py"):
+    for f in ("__init__.py", "operators.py", "ui.py", "physics.py", "core/camera.py", "core/capture.py", "core/physics_measures.py"):
         assert f in names, names
     assert not any("__pycache__" in n for n in names)
     ext = next((ROOT / ".venv" / "lib").glob("python3*/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
@@ -222,7 +222,7 @@ def test_extension_installs_and_registers(extension_zip, tmp_path):
     out = run_worker("install", user, zip=str(extension_zip))
     assert "bl_ext.user_default.hairrecon" in out["enabled"], out
     assert out["has_operator"]
-    assert out["operators"] == ["reconstruct", "import_capture", "export_hair"]
+    assert out["operators"] == ["reconstruct", "import_capture", "export_hair", "test_physics"]
     assert out["panels"] == ["HAIRRECON_PT_reconstruct", "HAIRRECON_PT_advanced"] and out["panel_category"] == "Hair"
     assert out["presets"] == {"preview": [300, 3000, 30, 10, True, "PREVIEW"], "after_edit": [123, "CUSTOM"]}
     # the Rust module comes from the wheel bundled in the extension, installed in the user folder
@@ -372,6 +372,36 @@ def test_alembic_and_usd_round_trips_keep_every_strand_and_point(pipeline):
         assert e["max_diff_m"] is not None and e["max_diff_m"] <= 1e-6, (ext, e)
         # the strands' widths (the tapering radius the extension gives them) come back too
         assert e["radius_max_diff_m"] is not None and e["radius_max_diff_m"] <= 1e-9, (ext, e)
+
+
+def test_hair_physics_on_the_result_and_the_ground_truth(pipeline):
+    """Test Hair Physics (Blender's hair dynamics while the head turns and nods) on the reconstruction and on
+    the ground truth bound to the same scalp: a hair particle system with dynamics on the scalp's copy and
+    the head's copy as collider, in a new scene; both stay within the bounds (no explosion, roots on the
+    scalp, little stretch, few points in the head) and the hair really moved (a copy that only follows
+    the head moves no tip). Without a head: one error, nothing made; a check removed part-way (Esc, a
+    failure) leaves every datablock as it was."""
+    ph = pipeline["physics"]
+    print(f"physics checks: {ph['seconds']:.1f} s")
+    assert ph["no_head"]["result"] is None and "no head" in ph["no_head"]["error"], ph["no_head"]
+    assert ph["no_head"]["unchanged"]
+    assert ph["removed"]["made"]["scenes"] == ["Hair Physics"], ph["removed"]["made"]
+    assert ph["removed"]["unchanged"]
+    for name in ("ours", "ground_truth"):
+        r = ph[name]
+        assert r["error"] is None and r["result"] == ["FINISHED"], (name, r)
+        assert r["scene_unchanged"], name
+        assert r["new"]["scenes"] == ["Hair Physics"], (name, r["new"])
+        assert r["particles"] == 200 and r["dynamics"] and r["collider"] == ["Hair Physics Head"], (name, r)
+        m = r["summary"]
+        print(f"physics {name}: {m}")
+        assert m["strands"] == 200 and m["frames"] == 24 and m["points_per_strand"] == 17, (name, m)
+        assert m["finite"] and not m["exploded"], (name, m)
+        assert m["root_max_mm"] <= 0.1, (name, m)
+        assert m["stretch_median_pct"] <= 1.0 and m["stretch_p95_pct"] <= 30.0, (name, m)
+        assert m["inside_max_pct"] <= 2.0, (name, m)
+        assert m["tip_motion_median_mm"] > 5.0, (name, m)
+        assert m["ok"] and m["failed"] == [], (name, m)
 
 
 def test_cancel_leaves_the_scene_unchanged(extension_zip, test_capture, tmp_path):
@@ -608,7 +638,8 @@ def test_colmap_import_fit_head_and_reconstruct_in_one_flow(extension_zip, tmp_p
 
 def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture, tmp_path):
     """The batch script on the saved scene, with the scalp given on the command line as a vertex
-    group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it)."""
+    group of the head (a head mesh without UVs: the add-on makes an overlap-free UV map for it), then
+    Test Hair Physics on its result (--physics)."""
     blend = pipeline["saved"]
     assert pipeline["scalp_group_vertices"] > 100
     user = tmp_path / "user"
@@ -621,7 +652,8 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture,
          "--dr-iters-guides", "3", "--dr-iters-children", "2",
          "--render", str(out / "after.png"), "--render-before", str(out / "before.png"),
          "--render-pair", str(out / "pair.png"), "--render-height", "64", "--render-samples", "4", "--render-fit", "0.8",
-         "--gt-strands", str(Path(test_capture) / "gt" / "strands.hair"), "--render-gt", str(out / "gt.png")],
+         "--gt-strands", str(Path(test_capture) / "gt" / "strands.hair"), "--render-gt", str(out / "gt.png"),
+         "--physics", str(out / "physics.json"), "--physics-strands", "60"],
         capture_output=True, text=True, env=env, timeout=900,
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -646,6 +678,13 @@ def test_batch_script_with_the_bpy_module(pipeline, extension_zip, test_capture,
     rows = (out / "result" / "loss.csv").read_text().splitlines()
     assert rows[0].startswith("stage,iteration,total") and [r.split(",")[0] for r in rows[1:]] == ["guides"] * 3 + ["children"] * 2
     assert [name for name, _ in summary["stage_times"]][-1] == "dr"
+    # --physics: Test Hair Physics on the result and on the ground truth, the scalp being the head's group
+    physics = json.loads((out / "physics.json").read_text())
+    assert set(physics["results"]) == {"ours", "ground truth"}
+    for name, m in physics["results"].items():
+        assert m["strands"] == 60 and m["frames"] == 48 and m["finite"] and not m["exploded"], (name, m)
+        assert m["root_max_mm"] <= 0.1 and m["tip_motion_median_mm"] > 5.0, (name, m)
+    assert summary["physics"]["file"] == str(out / "physics.json")
 
     # the saved result: hair attached to the head through the new UV map
     res = run_worker("inspect", tmp_path / "user2", blend=str(out / "scene.blend"))
