@@ -77,7 +77,14 @@ PRESETS = {
     "paper": dict(strands=50000, views=58, height=512, samples=128),
     # The colour study (issue 6: wavy in six colours): the paper's hair at about 0.3 of its render cost.
     "colors": dict(strands=50000, views=30, height=384, samples=32),
+    # A phone video around the head (issue 53; the paper's hand-held capture): 60 frames on a ring at eye level,
+    # rising and falling by up to 15 degrees, none from above; the colours preset's image size and samples.
+    "handheld": dict(strands=50000, views=60, height=384, samples=32, rig="ring"),
 }
+# the cameras' layout when the preset names none: a Fibonacci lattice over the upper hemisphere
+DEFAULT_RIG = "hemisphere"
+# the ring rig's cameras rise and fall this many degrees about the head centre's height, twice around
+RING_SPREAD_DEG = 15.0
 
 # --fusion auto fuses the photographs' own depth when the hair pixels of the masks have at least this
 # mean coverage (the hair looks like a surface), else wide-ribbon depth maps. Measured: 0.86 on the
@@ -135,6 +142,13 @@ def parse_args(argv=None):
     p.add_argument("--distance", type=float, default=1.0, help="camera distance from the head centre (metres)")
     p.add_argument(
         "--min-elevation", type=float, default=0.0, help="lowest camera elevation in degrees above the head centre"
+    )
+    p.add_argument(
+        "--rig",
+        choices=["hemisphere", "ring"],
+        help="camera layout: hemisphere (a Fibonacci lattice over the upper half, --min-elevation up) or ring (around "
+        f"the head at its centre's height, rising and falling by {RING_SPREAD_DEG:g} degrees, like a phone video); "
+        f"default: the preset's (handheld: ring, others: {DEFAULT_RIG})",
     )
     p.add_argument(
         "--fusion-radius-mm",
@@ -198,6 +212,8 @@ def parse_args(argv=None):
     for k, v in PRESETS[a.preset].items():
         if k != "strands" and getattr(a, k) is None:
             setattr(a, k, v)
+    if a.rig is None:
+        a.rig = DEFAULT_RIG
     if a.wild:
         if a.no_fuse or a.only_view is not None or a.skip_photos:
             p.error("--wild needs the raw mesh of every view: no --no-fuse, --only-view or --skip-photos")
@@ -231,6 +247,22 @@ def fibonacci_hemisphere(n: int, min_elevation_deg: float = 0.0) -> np.ndarray:
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     phi = (i - 0.5) * math.pi * (3.0 - math.sqrt(5.0)) - math.pi / 2  # the first camera looks at the face (from -Y)
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def ring(n: int, spread_deg: float = RING_SPREAD_DEG) -> np.ndarray:
+    """n unit directions evenly around the vertical axis, the first toward the face (-Y), at elevations that
+    rise and fall twice around between -spread and +spread degrees (a phone carried around the head)."""
+    i = np.arange(n)
+    phi = 2.0 * math.pi * i / n - math.pi / 2
+    elev = np.radians(spread_deg) * np.sin(2.0 * math.pi * 2.0 * i / n)
+    return np.stack([np.cos(elev) * np.cos(phi), np.cos(elev) * np.sin(phi), np.sin(elev)], axis=1)
+
+
+def camera_directions(a) -> np.ndarray:
+    """The unit directions from the head centre to the cameras, by ``--rig``."""
+    if a.rig == "ring":
+        return ring(a.views)
+    return fibonacci_hemisphere(a.views, a.min_elevation)
 
 
 def look_at_rt(eye: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -405,7 +437,7 @@ def add_cameras(bpy, sc, a, target: np.ndarray, radius: float):
     lens = fx * sensor / w
     mathutils = sys.modules["mathutils"]
     cams = []
-    for i, d in enumerate(fibonacci_hemisphere(a.views, a.min_elevation)):
+    for i, d in enumerate(camera_directions(a)):
         name = f"view_{i:03d}"
         cam = bpy.data.cameras.new(name)
         cam.sensor_fit = "HORIZONTAL"
@@ -672,6 +704,7 @@ def render_capture(a) -> int:
         "points": int(len(pts)),
         "color": a.color,
         "preset": a.preset,
+        "rig": a.rig,
         "samples": a.samples,
         "radius_mm": a.radius_mm,
         "curve_shape": a.curve_shape,

@@ -360,3 +360,24 @@ def test_every_hair_colour_builds_its_material(color):
     else:
         assert tuple(hb.inputs["Color"].default_value)[:3] == pytest.approx(spec["color"])
     bpy.data.materials.remove(m)
+
+
+def test_the_handheld_preset_is_a_ring_at_eye_level():
+    """The handheld preset (a phone video around the head): 60 cameras evenly around the vertical, the first
+    toward the face, within 15 degrees of the head centre's height, none from above; the other presets keep
+    the hemisphere, whose cameras look down from up to the zenith."""
+    import render_synthetic as rs
+
+    a = rs.parse_args(["gt.hair", "head.ply", "out", "--preset", "handheld"])
+    assert (a.views, a.height, a.rig) == (60, 384, "ring")
+    d = rs.camera_directions(a)
+    assert d.shape == (60, 3) and np.allclose(np.linalg.norm(d, axis=1), 1.0)
+    elev = np.degrees(np.arcsin(d[:, 2]))
+    assert elev.max() == pytest.approx(15.0, abs=0.1) and elev.min() == pytest.approx(-15.0, abs=0.1)
+    az = np.sort(np.degrees(np.arctan2(d[:, 1], d[:, 0])) % 360)
+    assert np.diff(np.concatenate([az, [az[0] + 360]])).max() == pytest.approx(6.0)
+    assert np.allclose(d[0], [0.0, -1.0, 0.0], atol=1e-9)  # the first looks at the face
+    b = rs.parse_args(["gt.hair", "head.ply", "out", "--preset", "paper"])
+    assert b.rig == "hemisphere" and np.degrees(np.arcsin(rs.camera_directions(b)[:, 2])).max() > 80
+    c = rs.parse_args(["gt.hair", "head.ply", "out", "--preset", "paper", "--rig", "ring", "--views", "8"])
+    assert rs.camera_directions(c).shape == (8, 3) and abs(rs.camera_directions(c)[:, 2]).max() < 0.26
