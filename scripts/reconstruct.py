@@ -111,7 +111,12 @@ def ensure_addon(bpy):
             addon_utils.enable(mod.__name__, default_set=False, handle_error=None)
             if hasattr(bpy.types, "HAIRRECON_OT_reconstruct"):
                 return mod.__name__
-    # the source tree, under a name that does not hide the `hairrecon` library module
+    return register_source_addon()
+
+
+def register_source_addon() -> str:
+    """Registers ``addon/hairrecon`` from this source tree under the name ``hairrecon_addon`` (which does not
+    hide the ``hairrecon`` library module) and returns that name."""
     pkg = ROOT / "addon" / "hairrecon"
     spec = importlib.util.spec_from_file_location("hairrecon_addon", pkg / "__init__.py", submodule_search_locations=[str(pkg)])
     mod = importlib.util.module_from_spec(spec)
