@@ -65,17 +65,14 @@ def _world_mesh(obj, depsgraph, to_canonical: Matrix, name: str) -> bpy.types.Me
     return mesh
 
 
-def _hair_points(obj) -> tuple[np.ndarray, np.ndarray]:
-    """A Curves object's points (world space) and per-strand counts."""
+def _hair_points(obj) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A Curves object's points (object space, float32, (N, 3)), per-strand counts and object-to-world matrix."""
     cv = obj.data
-    n = len(cv.points)
-    pts = np.empty(n * 3, np.float32)
+    pts = np.empty(len(cv.points) * 3, np.float32)
     cv.points.foreach_get("position", pts)
     counts = np.empty(len(cv.curves), np.int32)
     cv.curves.foreach_get("points_length", counts)
-    pts = pts.reshape(-1, 3).astype(np.float64)
-    m = np.asarray(obj.matrix_world, np.float64)
-    return pts @ m[:3, :3].T + m[:3, 3], counts.astype(np.int64)
+    return pts.reshape(-1, 3), counts.astype(np.int64), np.asarray(obj.matrix_world, np.float64)
 
 
 def check_inputs(hair, head) -> None:
@@ -159,11 +156,13 @@ class PhysicsCheck:
         self.head.collision.thickness_inner = 0.01
         self.head.collision.cloth_friction = 5.0
 
-        pts, counts = _hair_points(hair)
+        pts, counts, to_world = _hair_points(hair)
         which = pick(counts, s.strands, s.seed)
-        to_c_np = np.asarray(to_c, np.float64)
-        pts = pts @ to_c_np[:3, :3].T + to_c_np[:3, 3] - np.asarray(pivot)
-        strands = resample(pts, counts, which, s.points)
+        starts = np.concatenate([[0], np.cumsum(counts)])[which]
+        picked = pts[np.concatenate([np.arange(a, a + n) for a, n in zip(starts, counts[which])])].astype(np.float64)
+        m = np.asarray(to_c, np.float64) @ to_world
+        picked = picked @ m[:3, :3].T + m[:3, 3] - np.asarray(pivot)
+        strands = resample(picked, counts[which], np.arange(len(which)), s.points)
         self.which = which
         # the rest pose: the first frame, read back through the path cache as every other frame
         self.measures = Measures()
@@ -204,9 +203,9 @@ class PhysicsCheck:
         self.scalp.data.materials.append(mat)
         ps.material = len(self.scalp.data.materials)
 
-        self.bvh = BVHTree.FromPolygons(
-            [tuple(vv.co) for vv in head_mesh.vertices], [tuple(p.vertices) for p in head_mesh.polygons]
-        )
+        co = np.empty(len(head_mesh.vertices) * 3)
+        head_mesh.vertices.foreach_get("co", co)
+        self.bvh = BVHTree.FromPolygons(co.reshape(-1, 3).tolist(), [tuple(p.vertices) for p in head_mesh.polygons])
         self.rims = _rims(head_mesh)
         v = np.empty(len(head_mesh.vertices) * 3)
         head_mesh.vertices.foreach_get("co", v)
@@ -278,21 +277,26 @@ class PhysicsCheck:
 def _rims(mesh) -> dict:
     """For each face with an open edge (a head mesh has holes: the neck, eyes, mouth), its open edges as
     (E, 2, 3) end points."""
-    counts: dict = {}
-    for e in mesh.edges:
-        counts[tuple(sorted(e.vertices))] = 0
-    for p in mesh.polygons:
-        for k in p.edge_keys:
-            counts[tuple(sorted(k))] = counts.get(tuple(sorted(k)), 0) + 1
+    ev = np.empty(len(mesh.edges) * 2, np.int32)
+    mesh.edges.foreach_get("vertices", ev)
+    loop_edge = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("edge_index", loop_edge)
+    start = np.empty(len(mesh.polygons), np.int32)
+    total = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("loop_start", start)
+    mesh.polygons.foreach_get("loop_total", total)
     co = np.empty(len(mesh.vertices) * 3)
     mesh.vertices.foreach_get("co", co)
-    co = co.reshape(-1, 3)
-    rims = {}
-    for p in mesh.polygons:
-        open_edges = [k for k in p.edge_keys if counts[tuple(sorted(k))] == 1]
-        if open_edges:
-            rims[p.index] = np.array([[co[a], co[b]] for a, b in open_edges])
-    return rims
+    co, ev = co.reshape(-1, 3), ev.reshape(-1, 2)
+    # the faces' loops are contiguous runs that together cover every loop: in the order of their starts,
+    # loop i belongs to the face whose run holds i
+    order = np.argsort(start, kind="stable")
+    loop_face = np.repeat(order, total[order])
+    uses = np.bincount(loop_edge, minlength=len(ev))
+    rims: dict = {}
+    for loop in np.flatnonzero(uses[loop_edge] == 1):
+        rims.setdefault(int(loop_face[loop]), []).append(co[ev[loop_edge[loop]]])
+    return {f: np.array(segs) for f, segs in rims.items()}
 
 
 def _on_rim(rim, loc, tol: float = 1e-4) -> bool:
