@@ -31,7 +31,7 @@ bash scripts/fuzz.sh --seconds 5
 step "pytest tests/python"
 export HAIRRECON_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/release/hairrecon"
 export HAIRRECON_WHEEL="$(ls "$(pwd)"/target/wheels-hairrecon/hairrecon-*.whl | head -n 1)"
-.venv/bin/python -m pytest -q tests/python
+.venv/bin/python -m pytest -q --durations=12 tests/python
 step "pytest tests/python/test_addon.py with Blender 4.2 (bpy 4.2, the oldest Blender the extension supports)"
-HAIRRECON_TEST_PYTHON="$(pwd)/.venv-blender42/bin/python" .venv/bin/python -m pytest -q tests/python/test_addon.py
+HAIRRECON_TEST_PYTHON="$(pwd)/.venv-blender42/bin/python" .venv/bin/python -m pytest -q --durations=8 tests/python/test_addon.py
 echo "== all tests passed in $(( $(date +%s) - start )) s"
