@@ -205,11 +205,10 @@ class PhysicsCheck:
 
         co = np.empty(len(head_mesh.vertices) * 3)
         head_mesh.vertices.foreach_get("co", co)
-        self.bvh = BVHTree.FromPolygons(co.reshape(-1, 3).tolist(), [tuple(p.vertices) for p in head_mesh.polygons])
+        co = co.reshape(-1, 3)
+        self.bvh = BVHTree.FromPolygons(co.tolist(), [tuple(p.vertices) for p in head_mesh.polygons])
         self.rims = _rims(head_mesh)
-        v = np.empty(len(head_mesh.vertices) * 3)
-        head_mesh.vertices.foreach_get("co", v)
-        self.box = (v.reshape(-1, 3).min(axis=0), v.reshape(-1, 3).max(axis=0))
+        self.box = (co.min(axis=0), co.max(axis=0))
 
     def show(self):
         """Makes the check's scene the window's (the user sees the hair move)."""
@@ -228,36 +227,29 @@ class PhysicsCheck:
         so = self.scalp.evaluated_get(dg)
         ps = so.particle_systems[0]
         n = len(self.which)
-        # the path cache has 2^display_step = points - 1 segments: its points are the simulated ones
-        ks = range(s.points)
         inv = so.matrix_world.inverted()
         pos = np.empty((n, s.points, 3))
-        depth = np.empty((n, s.points))
+        depth = np.zeros((n, s.points))  # how far inside the head; 0 for a point that is not a number
+        lo, hi = self.box
         for i in range(n):
-            for j, k in enumerate(ks):
-                q = inv @ Vector(ps.co_hair(so, particle_no=i, step=int(k)))
+            # the path cache has 2^display_step = points - 1 segments: its points are the simulated ones
+            for j in range(s.points):
+                q = inv @ Vector(ps.co_hair(so, particle_no=i, step=j))
                 pos[i, j] = q
                 loc, normal, face, dist = self.bvh.find_nearest(q)
                 if loc is None:
-                    depth[i, j] = np.nan
-                elif ((q - loc).dot(normal) >= 0 or (np.asarray(q) < self.box[0]).any() or (np.asarray(q) > self.box[1]).any()
-                      or _on_rim(self.rims.get(face), loc)):
-                    depth[i, j] = -dist
-                else:
-                    depth[i, j] = dist
-        self.measures.add(self.frame, pos, np.nan_to_num(depth, nan=0.0))
+                    continue
+                qa = np.asarray(q)
+                inside = (q - loc).dot(normal) < 0 and (lo <= qa).all() and (qa <= hi).all()
+                depth[i, j] = dist if inside and not _on_rim(self.rims.get(face), loc) else -dist
+        self.measures.add(self.frame, pos, depth)
         return self.frame < s.frames
 
-    def run(self, progress=None, cancelled=None) -> dict:
-        """Every frame; ``progress(fraction)`` after each, ``cancelled()`` polled before each."""
-        while True:
-            if cancelled is not None and cancelled():
-                return {}
-            more = self.step()
-            if progress is not None:
-                progress(self.frame / self.settings.frames)
-            if not more:
-                return self.summary()
+    def run(self) -> dict:
+        """Every frame; the summary."""
+        while self.step():
+            pass
+        return self.summary()
 
     def summary(self) -> dict:
         out = self.measures.summary()
