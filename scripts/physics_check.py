@@ -52,18 +52,15 @@ def parse_args(argv):
     return ap.parse_args(argv)
 
 
-def table(results: dict) -> str:
+def table(results: dict, package: str) -> str:
     names = list(results)
     lines = ["| measure | " + " | ".join(names) + " | bound |", "|---|" + "---:|" * len(names) + "---:|"]
-    bounds = importlib.import_module(f"{PACKAGE}.core.physics_measures").BOUNDS
+    bounds = importlib.import_module(f"{package}.core.physics_measures").BOUNDS
     for key, label, fmt in ROWS:
         cells = [fmt.format(results[n].get(key, "-")) for n in names]
         bound = f"≤ {bounds[key]}" if key in bounds else ""
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {bound} |")
     return "\n".join(lines)
-
-
-PACKAGE = ""
 
 
 def render_gif(bpy, checks: list, names: list, out: Path, height: int, samples: int) -> None:
@@ -77,6 +74,7 @@ def render_gif(bpy, checks: list, names: list, out: Path, height: int, samples: 
     import tempfile
 
     import numpy as np
+    from mathutils import Vector
 
     frames_png = []
     tmp = Path(tempfile.mkdtemp(prefix="hairrecon_physics_"))
@@ -90,8 +88,6 @@ def render_gif(bpy, checks: list, names: list, out: Path, height: int, samples: 
         target = np.array([pivot[0], pivot[1], pivot[2] + 0.12])
         az = math.radians(-60.0)
         eye = target + 0.85 * np.array([math.cos(az), math.sin(az), 0.25])
-        from mathutils import Vector
-
         d = Vector(target - eye)
         cam.location = Vector(eye)
         cam.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
@@ -141,8 +137,6 @@ def simulate(bpy, package: str, hair, gt, settings) -> tuple[dict, list]:
     """Test Hair Physics on ``hair`` and, when ``gt`` (points, counts) is given, on those strands bound to
     the same scalp; the Hair panel's Head collides. Returns the measures by name and the checks (their
     scenes stay, for --gif)."""
-    global PACKAGE
-    PACKAGE = package
     import numpy as np
 
     physics = importlib.import_module(f"{package}.physics")
@@ -208,7 +202,7 @@ def run(a) -> dict:
             raise Failure(f"--gt: {a.gt} does not exist")
         gt = hr.read_strands(str(a.gt))
     results, checks = simulate(bpy, package, hair, gt, settings)
-    print(table(results), flush=True)
+    print(table(results, package), flush=True)
     if a.json is not None:
         a.json.parent.mkdir(parents=True, exist_ok=True)
         a.json.write_text(json.dumps({"blend": bpy.data.filepath, "settings": vars(settings), "results": results}, indent=1))

@@ -492,7 +492,7 @@ def run(a) -> dict:
             raise Failure(f"--physics: {e}") from None
         for c in checks:
             c.remove()
-        print(physics_check.table(results), flush=True)
+        print(physics_check.table(results, package), flush=True)
         a.physics.parent.mkdir(parents=True, exist_ok=True)
         a.physics.write_text(json.dumps({"blend": summary["saved"], "settings": vars(settings), "results": results}, indent=1))
         summary["physics"] = {"file": str(a.physics), **{k: v["ok"] for k, v in results.items()}}
