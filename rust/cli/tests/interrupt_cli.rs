@@ -27,6 +27,8 @@ fn start(cap: &Path, out: &Path) -> Child {
         .arg("reconstruct")
         .arg(cap)
         .args(["--out", out.to_str().unwrap(), "--guides", "60", "--children", "400"])
+        // A short DR: the signals should land in every stage, not mostly in DR's steps.
+        .args(["--dr-iters-guides", "6", "--dr-iters-children", "3"])
         .stderr(Stdio::piped())
         .stdout(Stdio::null())
         .spawn()
@@ -88,7 +90,7 @@ fn an_interrupted_run_leaves_its_finished_stages_and_no_temporary() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Twenty signals at seeded random moments within 0.9 of a whole run's time (DR included), SIGINT and SIGTERM in
+/// Twelve signals at seeded random moments within 0.9 of a whole run's time (DR included), SIGINT and SIGTERM in
 /// turn, into the folder of a complete earlier run: each run either stops (exit 130, report
 /// `cancelled`, no `strands.hair`) or, signalled after its last write, completes (exit 0, the
 /// result whole); the folder always holds exactly what its report lists and no temporary file.
@@ -105,7 +107,7 @@ fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut stages_reached = std::collections::BTreeSet::new();
     let mut stopped = 0;
-    for trial in 0..20 {
+    for trial in 0..12 {
         state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         let at = full.mul_f64((state >> 11) as f64 / (1u64 << 53) as f64 * 0.9);
         let sig = if trial % 2 == 0 { "-INT" } else { "-TERM" };
@@ -149,10 +151,10 @@ fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
             other => panic!("{context}: exit {other:?}\n{text}"),
         }
     }
-    eprintln!("20 signals over a {full:?} run: {stopped} stopped it; last stages seen: {stages_reached:?}");
+    eprintln!("12 signals over a {full:?} run: {stopped} stopped it; last stages seen: {stages_reached:?}");
     // The first run reads cold caches, the later ones are a little faster: a late signal may find
     // the run complete, which is checked above all the same.
-    assert!(stopped >= 12, "most signals should land during the run: {stopped} of 20 stopped it");
+    assert!(stopped >= 8, "most signals should land during the run: {stopped} of 12 stopped it");
     assert!(stages_reached.len() >= 4, "signals should land in several stages: {stages_reached:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
