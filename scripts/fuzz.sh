@@ -4,7 +4,8 @@
 # each target runs from its seeds (fuzz/seeds, the project's own writers' files) and its committed
 # corpus (fuzz/corpus). A crash, a panic, a hang over 10 s or memory over 1 GB is a failure.
 #
-#   bash scripts/fuzz.sh                       # every target for 10 s each (the test command's run)
+#   bash scripts/fuzz.sh                       # every target for 10 s each, one per core at a time
+#                                              # (the test command gives --seconds 5)
 #   bash scripts/fuzz.sh --seconds 60 ply obj  # these targets, one minute each
 #   bash scripts/fuzz.sh --runs 1000000 --keep # the long run: a million executions per target, new
 #                                              # inputs merged into fuzz/corpus (commit them)
@@ -45,9 +46,9 @@ bin="$CARGO_TARGET_DIR/$host/release"
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-failed=0
-printf '%-14s %12s %9s %10s  %s\n' target executions seconds "exec/s" result
-for t in "${targets[@]}"; do
+# One target per core at a time (libFuzzer's run is one thread); the table in the targets' order.
+run_one() {
+  local t=$1 start rc
   mkdir -p "fuzz/corpus/$t" "$work/$t" "$work/artifacts-$t"
   start=$(date +%s%N)
   set +e
@@ -55,12 +56,25 @@ for t in "${targets[@]}"; do
     -timeout=10 -print_final_stats=1 -artifact_prefix="$work/artifacts-$t/" >"$work/$t.log" 2>&1
   rc=$?
   set -e
-  secs=$(awk -v a="$start" -v b="$(date +%s%N)" 'BEGIN { printf "%.1f", (b - a) / 1e9 }')
+  echo "$rc" >"$work/$t.rc"
+  awk -v a="$start" -v b="$(date +%s%N)" 'BEGIN { printf "%.1f", (b - a) / 1e9 }' >"$work/$t.secs"
+}
+jobs_max=$(nproc 2>/dev/null || echo 1)
+for t in "${targets[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs_max" ]; do wait -n || true; done
+  run_one "$t" &
+done
+wait
+failed=0
+printf '%-14s %12s %9s %10s  %s\n' target executions seconds "exec/s" result
+for t in "${targets[@]}"; do
+  rc=$(cat "$work/$t.rc")
+  secs=$(cat "$work/$t.secs")
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$t.log" | tail -n 1)
   runs=${runs:-0}
-  if [ $rc = 0 ]; then result=ok; else result="FAILED (exit $rc)"; failed=1; fi
+  if [ "$rc" = 0 ]; then result=ok; else result="FAILED (exit $rc)"; failed=1; fi
   printf '%-14s %12s %9.0f %10.0f  %s\n' "$t" "$runs" "$secs" "$(awk -v r="$runs" -v s="$secs" 'BEGIN { print r / s }')" "$result"
-  if [ $rc != 0 ]; then
+  if [ "$rc" != 0 ]; then
     mkdir -p fuzz/artifacts
     cp "$work/artifacts-$t"/* fuzz/artifacts/ 2>/dev/null || true
     grep -v '^#\|^INFO\|^\s*$' "$work/$t.log" | tail -n 40 >&2

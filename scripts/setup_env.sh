@@ -5,16 +5,20 @@
 #   - the Python module `hairrecon`: one abi3 wheel built by maturin (target/wheels-hairrecon/), installed
 #     into .venv; the Blender extension's tests bundle the same wheel;
 #   - with --blender42: also .venv-blender42 with bpy 4.2 (requirements-blender42.txt), the oldest Blender the
-#     extension supports, for the extension's tests (scripts/test.sh).
+#     extension supports, for the extension's tests (scripts/test.sh);
+#   - with --tests: the CLI built together with the Rust tests and examples, as `cargo test --release` builds
+#     them (the dev-dependencies add features to shared crates, so a CLI built alone is compiled twice).
 # Needs: a Rust toolchain (cargo) and CPython 3.11 with venv and pip.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
 BLENDER42=0
+TESTS=0
 for arg in "$@"; do
   case "$arg" in
     --blender42) BLENDER42=1 ;;
-    *) echo "setup: error: unknown argument '$arg' (the only option is --blender42)" >&2; exit 2 ;;
+    --tests) TESTS=1 ;;
+    *) echo "setup: error: unknown argument '$arg' (the options are --blender42 and --tests)" >&2; exit 2 ;;
   esac
 done
 
@@ -45,8 +49,13 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "$want" > "$stamp"
 fi
 
-echo "setup: building the hairrecon CLI (release)"
-cargo build --release --quiet -p hairrecon-cli
+if [ "$TESTS" = 1 ]; then
+  echo "setup: building the hairrecon CLI with the Rust tests (release)"
+  cargo build --release --quiet --workspace --exclude hairrecon-python --lib --bins --tests --examples
+else
+  echo "setup: building the hairrecon CLI (release)"
+  cargo build --release --quiet -p hairrecon-cli
+fi
 
 echo "setup: building the Python module (abi3 wheel, maturin, release) and installing it into .venv"
 rm -rf target/wheels-hairrecon

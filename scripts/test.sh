@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs every test of hairrecon on a fresh machine: sets up the environment first (scripts/setup_env.sh),
+# Runs every test of hairrecon on a fresh machine: sets up the environment first (scripts/setup_env.sh,
+# which builds the Rust tests with the CLI),
 # then formatting, the documentation's links and API docs, lints, the Rust tests, a short fuzzing run of
 # every reader, and the Python tests (bpy + Cycles, headless), the
 # extension's tests a second time with Blender 4.2 (bpy 4.2).
@@ -7,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
 step() { echo "== $* (at $(( $(date +%s) - start )) s)"; }
-bash scripts/setup_env.sh --blender42
+bash scripts/setup_env.sh --blender42 --tests
 # the test-preset capture is rendered once and shared by both pytest runs (tests/python/conftest.py)
 HAIRRECON_TEST_CAPTURE_CACHE="$(mktemp -d)"
 export HAIRRECON_TEST_CAPTURE_CACHE
