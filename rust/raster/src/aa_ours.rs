@@ -321,7 +321,7 @@ pub(crate) fn backward(
     let mut corners = Vec::with_capacity(parts.len());
     for (c, dirs) in parts {
         for (s, g) in dirs {
-            grads.dir[s as usize] += g;
+            grads.add_dir(s, g);
         }
         corners.push(c);
     }

@@ -66,7 +66,7 @@ pub(crate) const N8: [(i32, i32); 8] = [(-1, -1), (0, -1), (1, -1), (-1, 0), (1,
 pub(crate) fn scatter_corners(parts: Vec<Vec<(u32, Vec2)>>, grads: &mut SegmentGrads) {
     for part in parts {
         for (code, g) in part {
-            grads.corners[(code >> 2) as usize][(code & 3) as usize] += g;
+            grads.add_corner(code, g);
         }
     }
 }

@@ -227,7 +227,7 @@ mod tests {
                 cm[k][axis] -= h;
                 let fd =
                     ((frozen(&buf, &samples, &cp, &wts) - frozen(&buf, &samples, &cm, &wts)) / (2.0 * h as f64)) as f32;
-                let an = g.corners[0][k][axis];
+                let an = g.corners(0)[k][axis];
                 assert!(
                     (an - fd).abs() <= 0.02 * an.abs().max(fd.abs()) + 1e-3,
                     "corner {k} axis {axis}: {an} vs {fd}"

@@ -42,7 +42,7 @@ pub fn antialias_backward(
     let a = &buf.attrs;
     d_image.check_shape("the image gradient", a.width, a.height, a.channels)?;
     d_attrs.reset(a.width, a.height, a.channels);
-    if grads.corners.len() != screen.prims.len() {
+    if grads.len() != screen.prims.len() {
         grads.reset(screen.prims.len());
     }
     match saved.method {

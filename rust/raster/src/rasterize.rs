@@ -233,7 +233,7 @@ pub fn attributes_backward(screen: &Screen, buf: &Buffers, d_attrs: &Image, grad
         .collect();
     for part in partial {
         for (s, g) in part {
-            grads.dir[s as usize] += g;
+            grads.add_dir(s, g);
         }
     }
 }

@@ -169,22 +169,94 @@ impl Prim {
 }
 
 /// Per-segment gradients produced by the backward ops.
+///
+/// A view sees a small part of millions of segments (at most a few per pixel), so the gradients are
+/// sparse: every write goes through [`SegmentGrads::add_corner`] or [`SegmentGrads::add_dir`], which
+/// mark the segment, and [`SegmentGrads::reset`] and [`Screen::backward_vertices`] visit only the
+/// marked segments, in their order, instead of all of them.
 #[derive(Debug, Clone, Default)]
 pub struct SegmentGrads {
     /// ∂L/∂corner for the four corners of each primitive.
-    pub corners: Vec<[Vec2; 4]>,
+    corners: Vec<[Vec2; 4]>,
     /// ∂L/∂(b − a), the screen direction (from the orientation attribute).
-    pub dir: Vec<Vec2>,
+    dir: Vec<Vec2>,
+    /// One bit per segment: written since the last reset.
+    marks: Vec<u64>,
 }
 
 impl SegmentGrads {
-    /// Zeroes the gradients for `n` segments, reusing the allocations.
+    /// Zeroes the gradients for `n` segments, reusing the allocations (when the size is the same, only
+    /// the segments written since the last reset are zeroed).
     pub fn reset(&mut self, n: usize) {
-        self.corners.clear();
-        self.corners.resize(n, [Vec2::ZERO; 4]);
-        self.dir.clear();
-        self.dir.resize(n, Vec2::ZERO);
+        if self.corners.len() == n && self.dir.len() == n && self.marks.len() == n.div_ceil(64) {
+            for k in 0..self.marks.len() {
+                for i in marked_in(k, self.marks[k]) {
+                    self.corners[i] = [Vec2::ZERO; 4];
+                    self.dir[i] = Vec2::ZERO;
+                }
+                self.marks[k] = 0;
+            }
+        } else {
+            self.corners.clear();
+            self.corners.resize(n, [Vec2::ZERO; 4]);
+            self.dir.clear();
+            self.dir.resize(n, Vec2::ZERO);
+            self.marks.clear();
+            self.marks.resize(n.div_ceil(64), 0);
+        }
     }
+
+    /// The number of segments the gradients are sized for.
+    pub fn len(&self) -> usize {
+        self.corners.len()
+    }
+
+    /// Whether the gradients are sized for no segment.
+    pub fn is_empty(&self) -> bool {
+        self.corners.is_empty()
+    }
+
+    /// ∂L/∂corner of segment `i`'s four corners.
+    pub fn corners(&self, i: usize) -> [Vec2; 4] {
+        self.corners[i]
+    }
+
+    /// ∂L/∂(b − a) of segment `i`.
+    pub fn dir(&self, i: usize) -> Vec2 {
+        self.dir[i]
+    }
+
+    /// Adds `g` to corner `code & 3` of segment `code >> 2`.
+    #[inline]
+    pub fn add_corner(&mut self, code: u32, g: Vec2) {
+        let s = code >> 2;
+        self.corners[s as usize][(code & 3) as usize] += g;
+        self.marks[(s >> 6) as usize] |= 1 << (s & 63);
+    }
+
+    /// Adds `g` to ∂L/∂(b − a) of segment `s`.
+    #[inline]
+    pub fn add_dir(&mut self, s: u32, g: Vec2) {
+        self.dir[s as usize] += g;
+        self.marks[(s >> 6) as usize] |= 1 << (s & 63);
+    }
+
+    /// The segments written since the last reset, ascending.
+    fn marked(&self) -> impl Iterator<Item = usize> + '_ {
+        self.marks.iter().enumerate().filter(|(_, &w)| w != 0).flat_map(|(k, &w)| marked_in(k, w))
+    }
+}
+
+/// The segments whose bits are set in word `k` of a mark bitset, ascending.
+fn marked_in(k: usize, mut word: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        if word == 0 {
+            return None;
+        }
+        let bit = word.trailing_zeros() as usize;
+        word &= word - 1;
+        Some(64 * k + bit)
+    })
 }
 
 /// Per-vertex screen gradients: ∂L/∂pixel position and ∂L/∂half width.
@@ -410,19 +482,21 @@ impl Screen {
     }
 
     /// Maps per-segment gradients (corners, screen direction) to per-vertex pixel and half-width
-    /// gradients. `out` is overwritten.
+    /// gradients. `out` is overwritten. Only the segments that received a gradient are visited, in
+    /// their order (a segment without one would add zeros).
     pub fn backward_vertices(&self, g: &SegmentGrads, out: &mut VertexGrads) {
         out.pos.clear();
         out.pos.resize(self.pos.len(), Vec2::ZERO);
         out.hw.clear();
         out.hw.resize(self.pos.len(), 0.0);
         let tri = self.settings.shape == SegmentShape::Triangle;
-        for (i, (p, s)) in self.prims.iter().zip(&self.segs).enumerate() {
+        for i in g.marked() {
+            let (Some(p), Some(s)) = (self.prims.get(i), self.segs.get(i)) else { break };
             if !p.valid() {
                 continue;
             }
-            let gc = g.corners.get(i).copied().unwrap_or([Vec2::ZERO; 4]);
-            let gdir = g.dir.get(i).copied().unwrap_or(Vec2::ZERO);
+            let gc = g.corners[i];
+            let gdir = g.dir[i];
             let mut ga = gc[0] + gc[3];
             let mut gb = gc[1] + gc[2];
             let g03 = gc[0] - gc[3];
