@@ -27,7 +27,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "scripts"))
 from render_synthetic import COLORS, PRESETS, find_hairrecon  # noqa: E402
 
-STYLES = ["straight", "wavy", "curly", "short", "bob"]
+STYLES = ["straight", "wavy", "curly", "short", "bob", "volume"]
 
 
 def main(argv=None):

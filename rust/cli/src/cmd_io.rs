@@ -3,9 +3,11 @@
 use std::path::{Path, PathBuf};
 
 use hairrecon_core::capture::FrameSpec;
-use hairrecon_core::formats::{read_strands, write_strands};
+use hairrecon_core::formats::{read_mesh, read_strands, write_strands};
+use hairrecon_core::layer_height::{compare, LayerHeights};
 use hairrecon_core::metric::{evaluate, MetricOptions};
-use hairrecon_core::similarity::{transform_strands, Similarity};
+use hairrecon_core::similarity::{transform_mesh, transform_strands, Similarity};
+use hairrecon_core::Bvh;
 
 use crate::CmdResult;
 
@@ -25,6 +27,10 @@ pub struct EvalArgs {
     /// Arc-length resampling step in millimetres.
     #[arg(long, default_value_t = 1.0)]
     step_mm: f32,
+    /// The scalp mesh (in the strands' frame): also compare how far the hair stands off it over the
+    /// crown, per 1 cm cell (the median height of the points above it), prediction against ground truth.
+    #[arg(long, value_name = "SCALP.ply")]
+    scalp: Option<PathBuf>,
     /// Print exactly one JSON object on stdout instead of the table.
     #[arg(long)]
     json: bool,
@@ -70,8 +76,31 @@ pub fn eval(a: EvalArgs) -> CmdResult {
     }
     let opts = MetricOptions { step: a.step_mm * 1e-3, ..MetricOptions::default() };
     let report = evaluate(&pred, &gt, &opts)?;
+    let height = match &a.scalp {
+        Some(path) => {
+            let mut mesh = read_mesh(path)?;
+            if let Some(frame) = &a.frame {
+                mesh = transform_mesh(&mesh, &read_frame(frame)?);
+            }
+            let scalp = Bvh::new(mesh);
+            let heights = |s| LayerHeights::measure(s, &scalp, opts.step);
+            let c = compare(&heights(&pred)?, &heights(&gt)?);
+            Some(c.ok_or_else(|| {
+                format!(
+                    "--scalp {}: no 1 cm cell of the crown holds 20 points of both strand sets within 5 cm of \
+                     it; is it the scalp of these strands, in their frame (Z up)?",
+                    path.display()
+                )
+            })?)
+        }
+        None => None,
+    };
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        let mut v = serde_json::to_value(&report)?;
+        if let (Some(h), Some(obj)) = (&height, v.as_object_mut()) {
+            obj.insert("crown_height".into(), serde_json::to_value(h)?);
+        }
+        println!("{v}");
     } else {
         println!(
             "pred: {} ({} strands)   gt: {} ({} strands)",
@@ -81,6 +110,13 @@ pub fn eval(a: EvalArgs) -> CmdResult {
             gt.num_strands()
         );
         print!("{}", report.table());
+        if let Some(h) = height {
+            println!(
+                "height above the scalp over the crown ({} cells of 1 cm): ground truth {:.1} mm, prediction {:.1} mm; \
+                 |error| per cell: median {:.1} mm, 90th percentile {:.1} mm",
+                h.cells, h.gt_median_mm, h.pred_median_mm, h.median_abs_error_mm, h.p90_abs_error_mm
+            );
+        }
     }
     Ok(())
 }

@@ -10,7 +10,7 @@ use crate::CmdResult;
 
 #[derive(Debug, clap::Args)]
 pub struct SynthHairArgs {
-    /// Hairstyle: straight, wavy, curly, short or bob.
+    /// Hairstyle: straight, wavy, curly, short, bob or volume.
     #[arg(long, default_value = "straight")]
     pub style: String,
     /// Number of strands.

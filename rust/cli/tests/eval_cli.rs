@@ -1,7 +1,8 @@
 //! Issue 2's acceptance for `hairrecon eval --json`, through the real binary and real files:
 //! the same file scores 100 everywhere; a 1.5 mm perpendicular shift scores 0 at 1 mm and 100 at
 //! 2 and 3 mm; reversed strands score 0 directed and 100 undirected. Also the one-line errors,
-//! and `--frame`: strands in another frame (rotated, 20 units a metre) scored in millimetres.
+//! `--frame`: strands in another frame (rotated, 20 units a metre) scored in millimetres; and `--scalp`:
+//! the hair's height over the crown.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -155,4 +156,52 @@ fn eval_frame_scores_in_millimetres() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("bad_frame.json") && err.contains("determinant"), "{err}");
     let _ = std::fs::remove_dir_all(&d);
+}
+
+/// `--scalp`: the hair's height above the bundled scalp over the crown, the generator's straight hair
+/// (lying on the scalp) scored against its hair with volume (standing 1–3 cm off it): the table's
+/// line and the JSON's `crown_height`; a scalp that is not under the hair is one clear error.
+#[test]
+fn scalp_gives_the_height_of_the_hair_over_the_crown() {
+    let dir = tmp("scalp");
+    let scalp = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures/scalp.ply");
+    let hair = |style: &str| {
+        let f = dir.join(format!("{style}.hair"));
+        let out = Command::new(bin())
+            .args(["synth-hair", "--style", style, "--strands", "2000", "--seed", "3", "--out"])
+            .arg(&f)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        f
+    };
+    let (straight, volume) = (hair("straight"), hair("volume"));
+    let run = |scalp: &Path, json: bool| {
+        let mut cmd = Command::new(bin());
+        cmd.args(["eval", "--pred"]).arg(&straight).arg("--gt").arg(&volume).arg("--scalp").arg(scalp);
+        if json {
+            cmd.arg("--json");
+        }
+        cmd.output().unwrap()
+    };
+    let out = run(&scalp, true);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let h = &v["crown_height"];
+    let mm = |k: &str| h[k].as_f64().unwrap_or_else(|| panic!("no {k} in {h}"));
+    assert!((10.0..=30.0).contains(&mm("gt_median_mm")) && mm("pred_median_mm") < 6.0, "{h}");
+    assert!(mm("median_abs_error_mm") > 8.0 && h["cells"].as_u64().unwrap() >= 50, "{h}");
+    assert_eq!(v["undirected"].as_array().unwrap().len(), 3, "the metric is still there: {v}");
+    let out = run(&scalp, false);
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("height above the scalp over the crown"), "{text}");
+    // The scalp 20 cm away from the hair: no cell of the crown holds hair.
+    let far = dir.join("far_scalp.ply");
+    let mut m = hairrecon_core::formats::read_mesh(&scalp).unwrap();
+    m.vertices.iter_mut().for_each(|p| p.x += 0.2);
+    hairrecon_core::formats::write_mesh(&far, &m).unwrap();
+    let out = run(&far, false);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--scalp") && err.contains("far_scalp.ply"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

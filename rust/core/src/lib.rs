@@ -7,6 +7,7 @@
 //! - [`image_io`]: PNG (8/16-bit) and OpenEXR float images.
 //! - [`formats`]: mesh PLY/OBJ and hair files: Yuksel `.hair`, USC-HairSalon `.data`, PLY polylines, OBJ lines.
 //! - [`metric`]: the strand precision/recall/F1 metric (points matched at a distance and an angle).
+//! - [`layer_height`]: how far the hair stands off the scalp over the crown, against the ground truth's.
 //! - [`spatial`]: the one kd-tree index over oriented points and the one arc-length sampler.
 //!
 //! Everything is validated at construction: inner loops assume finite, consistent data.
@@ -16,6 +17,7 @@ pub mod capture;
 pub mod capture_frame;
 pub mod formats;
 pub mod image_io;
+pub mod layer_height;
 pub mod mesh;
 pub mod metric;
 pub mod scalp;

@@ -201,7 +201,8 @@ impl HairGenerator {
         let front = front_weight(root.position);
         // Combing back acts on hair from the top of the head, not on hair that already falls.
         let top = root.normal.z.max(0.0);
-        let mut d = (root.direction + 0.15 * rand_cube(rng)).normalize_or(root.direction);
+        // (A take-off of zero adds exact zeros: the other styles' bytes do not change.)
+        let mut d = (root.direction + prm.takeoff * root.normal + 0.15 * rand_cube(rng)).normalize_or(root.direction);
         if d.dot(root.normal) < 0.2 {
             d = (d + 0.5 * root.normal).normalize_or(root.normal);
         }

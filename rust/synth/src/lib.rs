@@ -3,7 +3,7 @@
 //! - [`head`]: the head fixture, Cem Yuksel's woman head normalised to metres, Z up, face toward −Y.
 //! - [`scalp_region`]: the rule that defines the scalp on that head, its submesh and UV mask.
 //! - [`collide`]: keeping points outside the head (signed distance with an offset).
-//! - [`style`]: the hairstyle presets (straight, wavy, curly, short, bob).
+//! - [`style`]: the hairstyle presets (straight, wavy, curly, short, bob, volume).
 //! - [`mod@generate`]: the seeded, parallel strand generator.
 //! - [`preview`]: front/side/back pictures of a hairstyle on the head.
 //!

@@ -18,10 +18,14 @@ pub enum Style {
     Short,
     /// A chin-length bob with the ends turned under.
     Bob,
+    /// Shoulder-length straight hair with volume: the roots leave the scalp steeply and the hair
+    /// stands 1–3 cm off the skin over the crown and the sides, as real hair does (the other styles
+    /// lie within a few millimetres of the scalp).
+    Volume,
 }
 
 impl Style {
-    pub const ALL: [Style; 5] = [Style::Straight, Style::Wavy, Style::Curly, Style::Short, Style::Bob];
+    pub const ALL: [Style; 6] = [Style::Straight, Style::Wavy, Style::Curly, Style::Short, Style::Bob, Style::Volume];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -30,6 +34,7 @@ impl Style {
             Style::Curly => "curly",
             Style::Short => "short",
             Style::Bob => "bob",
+            Style::Volume => "volume",
         }
     }
 
@@ -54,6 +59,7 @@ impl Style {
             frizz: 0.03,
             offset: 0.0015,
             volume: 0.010,
+            takeoff: 0.0,
         };
         match self {
             Style::Straight => base,
@@ -110,6 +116,17 @@ impl Style {
                 volume: 0.012,
                 ..base
             },
+            Style::Volume => StyleParams {
+                length: 0.30,
+                length_jitter: 0.1,
+                stiff_len: 0.02,
+                bend_root: 0.05,
+                back: 0.5,
+                offset: 0.008,
+                volume: 0.012,
+                takeoff: 1.5,
+                ..base
+            },
         }
     }
 }
@@ -124,7 +141,7 @@ impl FromStr for Style {
     type Err = SynthError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Style::ALL.into_iter().find(|st| st.name().eq_ignore_ascii_case(s)).ok_or_else(|| {
-            SynthError::Param(format!("unknown style {s:?}; use one of straight, wavy, curly, short, bob"))
+            SynthError::Param(format!("unknown style {s:?}; use one of straight, wavy, curly, short, bob, volume"))
         })
     }
 }
@@ -169,6 +186,9 @@ pub struct StyleParams {
     pub offset: f32,
     /// Largest extra distance from the head for strands that have travelled far over it (layers).
     pub volume: f32,
+    /// Weight of the scalp's normal in a strand's first direction (0: the root leaves along the
+    /// scalp's growth direction; larger: more steeply, as hair with volume does).
+    pub takeoff: f32,
 }
 
 impl StyleParams {
@@ -201,6 +221,7 @@ impl StyleParams {
             ("wave_coherence", self.wave_coherence),
             ("frizz", self.frizz),
             ("volume", self.volume),
+            ("takeoff", self.takeoff),
         ];
         for (name, v) in others {
             if !(v.is_finite() && v >= 0.0) {

@@ -1,7 +1,9 @@
 //! The generator on the bundled head: outside the head, rooted on the scalp, the right sizes, the
-//! face free, and the same bytes for the same seed with any number of threads.
+//! face free, hair with volume standing off the crown, and the same bytes for the same seed with any
+//! number of threads.
 
 use hairrecon_core::formats::read_mesh;
+use hairrecon_core::layer_height::LayerHeights;
 use hairrecon_core::{Bvh, StrandSet, TriMesh};
 use hairrecon_synth::{fixtures_dir, HairGenerator, Style, SynthOptions};
 
@@ -23,6 +25,7 @@ fn length_range(style: Style) -> (f32, f32, f32, f32) {
         Style::Curly => (0.15, 0.28, 0.42, 0.50),
         Style::Short => (0.04, 0.06, 0.08, 0.10),
         Style::Bob => (0.10, 0.15, 0.19, 0.23),
+        Style::Volume => (0.22, 0.27, 0.34, 0.38),
     }
 }
 
@@ -91,6 +94,23 @@ fn long_straight_hair_falls_past_the_shoulders_and_curly_curls() {
     assert!(st[st.len() / 2] < 1.5, "straight: median length / chord {}", st[st.len() / 2]);
 }
 
+/// Over the crown, the volume style's hair stands 1–3 cm off the scalp (the median of 1 cm cells'
+/// median heights); straight hair lies within a few millimetres of it.
+#[test]
+fn hair_with_volume_stands_off_the_crown_and_straight_hair_lies_on_it() {
+    let (head, scalp) = fixtures();
+    let gen = HairGenerator::new(&head, scalp.clone()).unwrap();
+    let scalp = Bvh::new(scalp);
+    let height = |style| {
+        let hair = gen.generate(&opts(style, 3000, 5), &|_| {}).unwrap();
+        LayerHeights::measure(&hair, &scalp, 0.001).unwrap().median().unwrap()
+    };
+    let (volume, straight) = (height(Style::Volume), height(Style::Straight));
+    println!("median height over the crown: volume {:.1} mm, straight {:.1} mm", 1e3 * volume, 1e3 * straight);
+    assert!((0.010..=0.030).contains(&volume), "volume: {volume} m");
+    assert!(straight < 0.006, "straight: {straight} m");
+}
+
 #[test]
 fn same_seed_same_bytes_with_any_thread_count() {
     let (head, scalp) = fixtures();
@@ -113,5 +133,5 @@ fn bad_options_are_clear_errors() {
     let e = gen.generate(&SynthOptions { points: 1, ..opts(Style::Short, 10, 1) }, &|_| {}).unwrap_err();
     assert!(e.to_string().contains("points per strand"), "{e}");
     let e = "afro".parse::<Style>().unwrap_err();
-    assert!(e.to_string().contains("straight, wavy, curly, short, bob"), "{e}");
+    assert!(e.to_string().contains("straight, wavy, curly, short, bob, volume"), "{e}");
 }
