@@ -82,7 +82,7 @@ pub struct HeightComparison {
 
 /// Compares cell by cell; `None` when no cell has enough points in both.
 pub fn compare(pred: &LayerHeights, gt: &LayerHeights) -> Option<HeightComparison> {
-    let mut both: Vec<(f32, f32)> = gt
+    let both: Vec<(f32, f32)> = gt
         .cells
         .iter()
         .filter(|(_, g)| g.1 >= MIN_POINTS)
@@ -91,7 +91,6 @@ pub fn compare(pred: &LayerHeights, gt: &LayerHeights) -> Option<HeightCompariso
     if both.is_empty() {
         return None;
     }
-    both.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.total_cmp(&b.0)));
     let mut err: Vec<f32> = both.iter().map(|(p, g)| (p - g).abs()).collect();
     err.sort_by(f32::total_cmp);
     Some(HeightComparison {
