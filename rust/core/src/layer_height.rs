@@ -53,9 +53,9 @@ impl LayerHeights {
         }
         let cells = per_cell
             .into_iter()
-            .map(|(k, mut d)| {
-                d.sort_by(f32::total_cmp);
-                (k, (d[d.len() / 2], d.len()))
+            .filter_map(|(k, d)| {
+                let n = d.len();
+                median(d).map(|m| (k, (m, n)))
             })
             .collect();
         Ok(Self { cells })
