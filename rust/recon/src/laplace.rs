@@ -147,16 +147,16 @@ pub struct LaplaceParams {
     /// (the points' depth test, the curl's bumps, scoring) read the raw mesh as given. 0 = none.
     #[serde(default = "default_outer_smoothing")]
     pub outer_smoothing: u32,
-    /// Hair that stands off the head: the voxels on the segment from a directed point down to its
-    /// nearest scalp point (within `band`) are hair too, when that segment leaves the scalp within
-    /// this many degrees of its normal (the point lies above the scalp, not beside it; 0: off, the
-    /// default). Without it, a layer thicker than `scalp_dist + max_point_dist` has a hole in its
-    /// middle where growth ends. Measured at commit 0b113ee (the init stage alone, undirected F1 at
-    /// 2 mm/20°, off → 30°): the generator's volume style (colours preset, seed 2) with a raw mesh
-    /// fused as the hair's envelope (research/notes/volume-study.md), where the hair stands 2–4 cm
-    /// off the crown, 29.9 → 39.9 (guides ending in the hole 1413 → 1336 of 2000, mean length
-    /// 10.2 → 11.8 cm); the straight test capture 63.4 → 62.4 (446 voxels more of 205,048). Off
-    /// until the benchmark's styles are measured with it.
+    /// Hair that stands off the head: the voxels whose cells the segment from a directed point
+    /// down to its nearest scalp point (within `band`) passes are hair too, when that segment
+    /// leaves the scalp within this many degrees of its normal (the point lies above the scalp,
+    /// not beside it; 0: off, the default). Without it, a layer thicker than `scalp_dist +
+    /// max_point_dist` has a hole in its middle where growth ends. Measured on the code of commit
+    /// 2f6e1d5 (the init stage alone, undirected F1 at 2 mm/20°, off → 30°): the generator's
+    /// volume style (colours preset, seed 2) with a raw mesh fused as the hair's envelope, where
+    /// the hair stands 2–4 cm off the crown, 29.9 → 41.7 (guides ending in the hole 1413 → 1269 of
+    /// 2000, mean length 10.2 → 12.4 cm); the straight test capture 63.4 → 62.4
+    /// (research/notes/volume-study.md). Off until the benchmark's styles are measured with it.
     #[serde(default = "default_column_angle_deg")]
     pub column_angle_deg: f32,
     /// Take-off where the hair stands off the head: where the raw mesh lies more than this above
@@ -164,16 +164,15 @@ pub struct LaplaceParams {
     /// the normal, all the way at twice this height (0: off, the default). The flow between the
     /// scalp and the seen hair is harmonic, so a strand rises at the rate the scalp condition
     /// gives it, falling to none at the seen hair; S(p_s) leans up to 60° from the normal, and
-    /// where the hair stands 2–4 cm off the crown the guides rose about half as fast as the ground
-    /// truth's (9 mm above the head after 2 cm of arc, the ground truth 19 mm) and ended in the
-    /// gap under the hair hanging behind the head. Measured at commit 0b113ee with 0.01 (the init
-    /// stage alone, undirected F1 at 2 mm/20°, off → on; see [`LaplaceParams::column_angle_deg`]
-    /// for the captures): the volume style with columns 41.7 → 58.3 (guides rooted on the crown 13
-    /// mm above the head after 2 cm of arc, their median length 16 → 45 cm against the ground
-    /// truth's 31), without columns 29.9 → 41.3; the same style with the renderer's raw mesh
-    /// (lying on the scalp over the crown) with columns 57.2 → 58.2; straight hair (colours preset,
-    /// seed 2) 87.2 → 87.0, with columns 86.7; the straight test capture 63.4 → 63.3, with
-    /// columns 62.7.
+    /// where the hair stands 2–4 cm off the crown the guides rose about half as fast as the
+    /// ground truth's (9 mm above the head after 2 cm of arc, the ground truth 19 mm) and ended in
+    /// the gap under the hair hanging behind the head. Measured on the code of commit 2f6e1d5 with
+    /// 0.01 (as for [`LaplaceParams::column_angle_deg`], off → on): the volume style with columns
+    /// 41.7 → 58.3 (its guides rooted on the crown 13 mm above the head after 2 cm of arc, their
+    /// median length 16 → 45 cm against the ground truth's 31), without columns 29.9 → 41.3; the
+    /// same style with the renderer's raw mesh (which lies on the scalp over the crown) with
+    /// columns 57.2 → 58.2; straight hair (colours preset, seed 2) 87.2 → 87.0, with columns 86.7;
+    /// the straight test capture 63.4 → 63.3, with columns 62.7.
     #[serde(default)]
     pub scalp_lift: f32,
 }
