@@ -5,7 +5,8 @@ that stands off the head (the generator's `volume` style) passes between the str
 the time, so the fused surface lies on the scalp under the hair (research/notes/volume-study.md). Here each
 hair pixel takes instead the q-quantile of the sample-0 depths of the hair pixels in a (2r+1)² window: the
 strands in front give a patch its texture. Background pixels keep their depth, hair pixels with no depth in
-the window are unknown (-1).
+the window are unknown (-1). It reads the capture's `fusion/depth/` maps where they exist (the renderer crops
+the backdrop out of them), else each view's `gt_depth`.
 
     python research/scripts/envelope_depth.py CAPTURE OUT_DEPTH_DIR [--quantile 0.15] [--radius 3]
     hairrecon fuse-depth CAPTURE --depth-dir OUT_DEPTH_DIR --voxel-mm 1 --truncation-voxels 5 --quantile 0.3 --out MESH.ply
@@ -44,7 +45,10 @@ def main():
     a.out.mkdir(parents=True, exist_ok=True)
     spec = json.loads((a.capture / "capture.json").read_text())
     for v in spec["views"]:
-        depth = hairrecon.read_exr(str(a.capture / v["gt_depth"]))["R"]
+        # The renderer's own fusion depth maps where they exist (the backdrop cropped away), else the
+        # photo's depth.
+        own = a.capture / "fusion" / "depth" / f"{v['name']}.exr"
+        depth = hairrecon.read_exr(str(own if own.is_file() else a.capture / v["gt_depth"]))["R"]
         m = hairrecon.read_image(str(a.capture / v["mask"]))
         mask = (m if m.ndim == 2 else m[..., 0]) > 0
         e = envelope_depth(depth, mask, a.quantile, a.radius)
