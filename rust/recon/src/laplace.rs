@@ -157,7 +157,7 @@ pub struct LaplaceParams {
     /// the hair stands 2–4 cm off the crown, 29.9 → 41.7 (guides ending in the hole 1413 → 1269 of
     /// 2000, mean length 10.2 → 12.4 cm); the straight test capture 63.4 → 62.4
     /// (research/notes/volume-study.md). Off until the benchmark's styles are measured with it.
-    #[serde(default = "default_column_angle_deg")]
+    #[serde(default)]
     pub column_angle_deg: f32,
     /// Take-off where the hair stands off the head: where the raw mesh lies more than this above
     /// the scalp (metres, along the scalp's normal), the scalp condition turns from S(p_s) toward
@@ -181,10 +181,6 @@ fn default_outer_smoothing() -> u32 {
     5
 }
 
-fn default_column_angle_deg() -> f32 {
-    0.0
-}
-
 impl Default for LaplaceParams {
     fn default() -> Self {
         Self {
@@ -198,7 +194,7 @@ impl Default for LaplaceParams {
             scalp_tangent: 0.0,
             gravity: 0.0,
             outer_smoothing: default_outer_smoothing(),
-            column_angle_deg: default_column_angle_deg(),
+            column_angle_deg: 0.0,
             scalp_lift: 0.0,
         }
     }
@@ -273,13 +269,11 @@ fn columns(
 /// normal (unchanged when the lift is off). The guides' roots keep S(p_s) as their first step:
 /// lifting those too (on the code of commit 2f6e1d5, the volume capture of the lift's figures) gave
 /// 57.8 against 58.3.
-fn lifted(raw: &Bvh, point: Vec3, normal: Vec3, growth: Vec3, params: &LaplaceParams) -> Vec3 {
-    let lift = params.scalp_lift;
+fn lifted(raw: &Bvh, point: Vec3, normal: Vec3, growth: Vec3, lift: f32, band: f32) -> Vec3 {
     if lift <= 0.0 {
         return growth;
     }
-    // The layer's thickness: from the scalp along its normal to the raw mesh.
-    let band = params.band.max(2.0 * params.voxel);
+    // The layer's thickness: from the scalp along its normal to the raw mesh (up to `band`).
     let h = raw.ray_cast(point + normal * 1e-4, normal, 0.0, band).map_or(0.0, |hit| hit.t);
     let w = ((h - lift) / lift).clamp(0.0, 1.0);
     (growth * (1.0 - w) + normal * w).normalize_or(growth)
@@ -379,7 +373,7 @@ pub fn solve_flow(
         .filter_map(|i| {
             let sp = scalp_point(scalp, grid.centre(i), params.voxel)?;
             let g = sp.growth - sp.normal * (sp.growth.dot(sp.normal) * params.scalp_tangent.clamp(0.0, 1.0));
-            Some((i, lifted(raw, sp.point, sp.normal, g.normalize_or(sp.growth), params)))
+            Some((i, lifted(raw, sp.point, sp.normal, g.normalize_or(sp.growth), params.scalp_lift, band)))
         })
         .collect();
     for (i, g) in scalp_fixed {
