@@ -10,7 +10,8 @@ use crate::CmdResult;
 
 #[derive(Debug, clap::Args)]
 pub struct SynthHairArgs {
-    /// Hairstyle: straight, wavy, curly, short, bob or volume.
+    /// Hairstyle: straight, wavy, curly, short, bob, volume (the tuning styles), side_part, layered,
+    /// spiky, ponytail, coils, loose_curls or coarse (held out for reporting).
     #[arg(long, default_value = "straight")]
     pub style: String,
     /// Number of strands.

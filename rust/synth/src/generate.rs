@@ -56,6 +56,15 @@ pub const FACE_GUARD_Z: [f32; 2] = [-0.09, 0.075];
 pub const FACE_GUARD_X: f32 = 0.065;
 /// Arc length over which a strand is combed back while it lies on the head, metres.
 const NEAR_HEAD: f32 = 0.10;
+/// Layered cuts ([`StyleParams::layers`]): roots above this height (metres) are cut shorter, fully
+/// so `LAYERS_OVER_Z` higher.
+const LAYERS_FROM_Z: f32 = 0.06;
+const LAYERS_OVER_Z: f32 = 0.09;
+/// A ponytail's strands aim at points within this radius of the tie, and fall once this close.
+const TIE_RADIUS: f32 = 0.007;
+const TIE_REACHED: f32 = 0.012;
+/// How deep inside the head a coarse polyline's sample is looked for (metres).
+const COARSE_REACH: f32 = 0.02;
 
 /// What to generate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -130,7 +139,9 @@ impl HairGenerator {
             .enumerate()
             .map(|(i, root)| {
                 let mut rng = strand_rng(opts.seed, i as u64, 1);
-                let length = prm.length * (1.0 + prm.length_jitter * rng.random_range(-1.0f32..1.0));
+                let length = prm.length
+                    * (1.0 + prm.length_jitter * rng.random_range(-1.0f32..1.0))
+                    * (1.0 - prm.layers * smoothstep((root.position.z - LAYERS_FROM_Z) / LAYERS_OVER_Z));
                 // Waves line up across neighbouring clumps when the phase follows the root's height
                 // (a strand reaches a given height after about its root's height of arc length).
                 let spatial = -std::f32::consts::TAU * root.position.z / prm.curl_period;
@@ -147,7 +158,7 @@ impl HairGenerator {
             .enumerate()
             .map(|(i, root)| {
                 let mut rng = strand_rng(opts.seed, i as u64, 2);
-                let c = &clumps[nearest(&clumps, root)];
+                let c = &clumps[nearest(&clumps, root, prm)];
                 let length = c.length * (1.0 + 0.06 * rng.random_range(-1.0f32..1.0));
                 let phase = c.phase + 0.35 * rng.random_range(-1.0f32..1.0);
                 let layer = rng.random_range(0.3f32..1.0);
@@ -176,7 +187,19 @@ impl HairGenerator {
             })
             .collect();
         let counts = vec![n as u32; strands.len()];
-        Ok(StrandSet::new(strands.concat(), counts)?)
+        let hair = StrandSet::new(strands.concat(), counts)?;
+        if prm.polyline_points < 2 {
+            return Ok(hair);
+        }
+        // Coarse polylines: samples on the fine strand, pushed out where a sample cut across a
+        // crease of the head (the ears).
+        let (mut points, counts) = hair.resample_to_count(prm.polyline_points)?.into_parts();
+        points.par_chunks_mut(prm.polyline_points).for_each(|s| {
+            for p in &mut s[1..] {
+                *p = self.collider.push_out(*p, FINAL_OFFSET, COARSE_REACH);
+            }
+        });
+        Ok(StrandSet::new(points, counts)?)
     }
 
     /// One strand: grown centreline plus curls, not yet clumped; with a lower bound on each
@@ -197,8 +220,14 @@ impl HairGenerator {
         let reach = 1.5 * h;
         let mut bound = 0.0f32;
         let curl_max = prm.curl_radius[0].max(prm.curl_radius[1]);
-        let side = if root.position.x >= 0.0 { Vec3::X } else { Vec3::NEG_X };
-        let front = front_weight(root.position);
+        let side = if root.position.x >= prm.parting_x { Vec3::X } else { Vec3::NEG_X };
+        let front = front_weight(root.position, prm.part_back);
+        // A ponytail: each strand aims at its own point of the tie, until it gets there.
+        let mut tie = prm.tie.map(|t| {
+            let a = rng.random_range(0.0..std::f32::consts::TAU);
+            let r = TIE_RADIUS * rng.random_range(0.0f32..1.0).sqrt();
+            t + Vec3::new(r * a.cos(), 0.0, r * a.sin())
+        });
         // Combing back acts on hair from the top of the head, not on hair that already falls.
         let top = root.normal.z.max(0.0);
         // (A take-off of zero adds exact zeros: the other styles' bytes do not change.)
@@ -220,6 +249,13 @@ impl HairGenerator {
             let beside = 1.0 - smoothstep((p.x.abs() - 0.04) / 0.05);
             let mut target =
                 prm.gravity * Vec3::NEG_Z + prm.back * near * top * Vec3::Y + prm.part * front * beside * side;
+            if let Some(t) = tie {
+                if p.distance(t) < TIE_REACHED {
+                    tie = None;
+                } else {
+                    target = (t - p).normalize_or(Vec3::Y) * 4.0 + 0.2 * Vec3::NEG_Z;
+                }
+            }
             if prm.tip_under > 0.0 {
                 let radial = Vec3::new(p.x, p.y, 0.0).normalize_or_zero();
                 target -= prm.tip_under * smoothstep((t - 0.6) / 0.4) * radial;
@@ -288,12 +324,13 @@ pub fn generate(head: &TriMesh, scalp: &TriMesh, opts: &SynthOptions) -> Result<
 
 /// Index of the clump whose centre is nearest to `root`, on the same side of the middle parting
 /// when either lies at the front (so that no clump pulls hair across the face).
-fn nearest(clumps: &[Clump], root: &Root) -> usize {
+fn nearest(clumps: &[Clump], root: &Root, prm: &StyleParams) -> usize {
     let p = root.position;
+    let (px, back) = (prm.parting_x, prm.part_back);
     let mut best = (f32::INFINITY, 0);
     for (i, c) in clumps.iter().enumerate() {
         let q = c.root.position;
-        let split = (p.x >= 0.0) != (q.x >= 0.0) && (front_weight(p) > 0.0 || front_weight(q) > 0.0);
+        let split = (p.x >= px) != (q.x >= px) && (front_weight(p, back) > 0.0 || front_weight(q, back) > 0.0);
         let d = q.distance_squared(p) + if split { 1.0 } else { 0.0 };
         if d < best.0 {
             best = (d, i);
@@ -302,10 +339,10 @@ fn nearest(clumps: &[Clump], root: &Root) -> usize {
     best.1
 }
 
-/// How much a root counts as "at the front" (combed away from the middle parting): 1 in front of
-/// y = −0.02 m, 0 behind y = 0.06 m (near the whorl).
-fn front_weight(p: Vec3) -> f32 {
-    smoothstep((0.06 - p.y) / 0.08)
+/// How much a root counts as "at the front" (combed away from the parting): 1 in front of
+/// `part_back − 0.08` m, 0 behind `part_back` (the default 0.06 m: near the whorl).
+fn front_weight(p: Vec3, part_back: f32) -> f32 {
+    smoothstep((part_back - p.y) / 0.08)
 }
 
 /// The side of the middle parting that `p` is on.

@@ -3,7 +3,8 @@
 //! - [`head`]: the head fixture, Cem Yuksel's woman head normalised to metres, Z up, face toward −Y.
 //! - [`scalp_region`]: the rule that defines the scalp on that head, its submesh and UV mask.
 //! - [`collide`]: keeping points outside the head (signed distance with an offset).
-//! - [`style`]: the hairstyle presets (straight, wavy, curly, short, bob, volume).
+//! - [`style`]: the hairstyle presets (straight, wavy, curly, short, bob, volume, and the held-out
+//!   side_part, layered, spiky, ponytail, coils, loose_curls, coarse).
 //! - [`mod@generate`]: the seeded, parallel strand generator.
 //! - [`preview`]: front/side/back pictures of a hairstyle on the head.
 //!

@@ -26,6 +26,16 @@ fn length_range(style: Style) -> (f32, f32, f32, f32) {
         Style::Short => (0.04, 0.06, 0.08, 0.10),
         Style::Bob => (0.10, 0.15, 0.19, 0.23),
         Style::Volume => (0.22, 0.27, 0.34, 0.38),
+        Style::SidePart => (0.30, 0.38, 0.46, 0.60),
+        // Strands from the crown are about half as long as those from the nape.
+        Style::Layered => (0.10, 0.18, 0.28, 0.48),
+        Style::Spiky => (0.025, 0.045, 0.07, 0.10),
+        Style::Ponytail => (0.12, 0.32, 0.40, 0.52),
+        // Coils of 3 mm radius and 9 mm period make a strand about 2.3 times its 0.12 m centreline.
+        Style::Coils => (0.12, 0.23, 0.31, 0.36),
+        Style::LooseCurls => (0.33, 0.42, 0.52, 0.62),
+        // The wavy shape, a little shorter as 15-point polylines cut its bends.
+        Style::Coarse => (0.30, 0.40, 0.52, 0.60),
     }
 }
 
@@ -37,7 +47,8 @@ fn every_style_is_outside_the_head_rooted_on_the_scalp_and_sized() {
     for style in Style::ALL {
         let hair = gen.generate(&opts(style, 1000, 7), &|_| {}).unwrap();
         assert_eq!(hair.num_strands(), 1000);
-        assert!(hair.counts().iter().all(|&c| c == 100), "{style}: point counts");
+        let points = if style == Style::Coarse { 15 } else { 100 };
+        assert!(hair.counts().iter().all(|&c| c == points), "{style}: point counts");
         let mut worst = f32::INFINITY;
         let mut in_face = 0;
         for s in hair.iter() {
@@ -111,6 +122,37 @@ fn hair_with_volume_stands_off_the_crown_and_straight_hair_lies_on_it() {
     assert!(straight < 0.006, "straight: {straight} m");
 }
 
+/// The ponytail's strands pass through its tie; the layered cut's crown strands are much shorter
+/// than those from the nape (the straight style's are not).
+#[test]
+fn a_ponytail_is_tied_and_a_layered_cut_is_shorter_at_the_crown() {
+    let (head, scalp) = fixtures();
+    let gen = HairGenerator::new(&head, scalp).unwrap();
+    let tail = gen.generate(&opts(Style::Ponytail, 1000, 4), &|_| {}).unwrap();
+    let through = tail
+        .iter()
+        .filter(|s| s.iter().map(|p| p.distance(hairrecon_synth::style::PONYTAIL_TIE)).fold(f32::INFINITY, f32::min) < 0.02)
+        .count();
+    println!("ponytail: {through} of 1000 strands pass within 2 cm of the tie");
+    assert!(through >= 950, "ponytail: only {through} of 1000 strands pass the tie");
+    let ratio = |style| {
+        let hair = gen.generate(&opts(style, 2000, 4), &|_| {}).unwrap();
+        let median = |high: bool| {
+            let mut l: Vec<f32> = (0..hair.num_strands())
+                .filter(|&i| if high { hair.strand(i)[0].z > 0.14 } else { hair.strand(i)[0].z < 0.05 })
+                .map(|i| hair.strand_length(i))
+                .collect();
+            l.sort_by(f32::total_cmp);
+            l[l.len() / 2]
+        };
+        median(true) / median(false)
+    };
+    let (layered, straight) = (ratio(Style::Layered), ratio(Style::Straight));
+    println!("crown / nape median length: layered {layered:.2}, straight {straight:.2}");
+    assert!(layered < 0.65, "layered: crown / nape {layered}");
+    assert!(straight > 0.8, "straight: crown / nape {straight}");
+}
+
 #[test]
 fn same_seed_same_bytes_with_any_thread_count() {
     let (head, scalp) = fixtures();
@@ -133,5 +175,8 @@ fn bad_options_are_clear_errors() {
     let e = gen.generate(&SynthOptions { points: 1, ..opts(Style::Short, 10, 1) }, &|_| {}).unwrap_err();
     assert!(e.to_string().contains("points per strand"), "{e}");
     let e = "afro".parse::<Style>().unwrap_err();
-    assert!(e.to_string().contains("straight, wavy, curly, short, bob, volume"), "{e}");
+    assert!(e.to_string().contains("straight, wavy, curly, short, bob, volume, side_part"), "{e}");
+    let bad = hairrecon_synth::StyleParams { layers: 1.0, ..Style::Layered.params() };
+    let e = gen.generate(&SynthOptions { params: bad, ..opts(Style::Layered, 10, 1) }, &|_| {}).unwrap_err();
+    assert!(e.to_string().contains("layers"), "{e}");
 }
