@@ -62,7 +62,8 @@ impl Style {
 
     /// The styles the reconstruction's defaults were tuned on; the others are held out for
     /// reporting (with the held-out seeds of the benchmark, docs/synthetic-captures.md).
-    pub const TUNING: [Style; 6] = [Style::Straight, Style::Wavy, Style::Curly, Style::Short, Style::Bob, Style::Volume];
+    pub const TUNING: [Style; 6] =
+        [Style::Straight, Style::Wavy, Style::Curly, Style::Short, Style::Bob, Style::Volume];
 
     pub fn name(self) -> &'static str {
         match self {

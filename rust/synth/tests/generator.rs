@@ -131,7 +131,9 @@ fn a_ponytail_is_tied_and_a_layered_cut_is_shorter_at_the_crown() {
     let tail = gen.generate(&opts(Style::Ponytail, 1000, 4), &|_| {}).unwrap();
     let through = tail
         .iter()
-        .filter(|s| s.iter().map(|p| p.distance(hairrecon_synth::style::PONYTAIL_TIE)).fold(f32::INFINITY, f32::min) < 0.02)
+        .filter(|s| {
+            s.iter().map(|p| p.distance(hairrecon_synth::style::PONYTAIL_TIE)).fold(f32::INFINITY, f32::min) < 0.02
+        })
         .count();
     println!("ponytail: {through} of 1000 strands pass within 2 cm of the tie");
     assert!(through >= 950, "ponytail: only {through} of 1000 strands pass the tie");

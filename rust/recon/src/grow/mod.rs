@@ -106,6 +106,16 @@ pub struct GrowParams {
     /// along the outer surface instead. Near the scalp the hair layer is a voxel or two thick and
     /// the flow there still leans out along S(p_s), while real hair turns to lie along the head.
     pub exit_after: f32,
+    /// Ends where the hair ends at the outer surface: where the directed points within
+    /// `trace_radius` of a strand at the outer surface leave it, on average, at more than
+    /// `acos(exit_points_cos)` from the surface (|cos| of their tangents with its normal), and the
+    /// strand's own step leaves it at more than that too, past `exit_points_after` metres of arc.
+    /// Hair that lies along the outer surface (long hair) never meets it; hair whose tips stand
+    /// out of the surface (spiky hair) ends there instead of sliding on over the head (1: off).
+    #[serde(default = "off")]
+    pub exit_points_cos: f32,
+    #[serde(default = "one_cm")]
+    pub exit_points_after: f32,
     /// A strand that comes back within `loop_distance` of a point of its own at least `loop_window`
     /// metres of arc earlier circles in a vortex of the field: growth ends and the circle is cut
     /// off. A helical curl never comes back closer than its pitch (about a centimetre).
@@ -197,6 +207,14 @@ pub struct GrowParams {
     pub trace_trumps: f32,
 }
 
+fn off() -> f32 {
+    1.0
+}
+
+fn one_cm() -> f32 {
+    0.01
+}
+
 impl Default for GrowParams {
     fn default() -> Self {
         Self {
@@ -209,6 +227,8 @@ impl Default for GrowParams {
             max_gap: 0.02,
             exit_cos: 1.0,
             exit_after: 0.0,
+            exit_points_cos: off(),
+            exit_points_after: one_cm(),
             loop_window: 0.05,
             loop_distance: 0.004,
             escape_length: 0.05,
@@ -344,6 +364,17 @@ fn traced(points: &PointIndex, p: Vec3, prev: Vec3, params: &GrowParams) -> Opti
     Some((d.normalize_or_zero(), ws))
 }
 
+/// The mean |cos| between the directed points' tangents within `r` of `p` and the outer surface's
+/// normal `nrm` (how steeply the seen hair leaves the surface there), or `None` without points.
+fn leaving(points: &PointIndex, p: Vec3, nrm: Vec3, r: f32) -> Option<f32> {
+    let (mut sum, mut n) = (0.0f32, 0usize);
+    for i in points.within(p, r) {
+        sum += points.tangents[i].dot(nrm).abs();
+        n += 1;
+    }
+    (n > 0).then(|| sum / n as f32)
+}
+
 /// Grows one guide from `root` with start direction `start`; `trace`: the directed 3D points to
 /// follow besides the field (see [`GrowParams::trace_radius`]).
 pub fn grow_one(
@@ -448,6 +479,16 @@ pub fn grow_one(
             nrm = gradient(flow, &flow.sd_outer, p);
             let c = d.dot(nrm);
             if params.exit_cos < 1.0 && c > params.exit_cos && step_no as f32 * params.step >= params.exit_after {
+                stop = Stop::Outside;
+                break;
+            }
+            if params.exit_points_cos < 1.0
+                && c > params.exit_points_cos
+                && step_no as f32 * params.step >= params.exit_points_after
+                && trace
+                    .and_then(|t| leaving(t, p, nrm, params.trace_radius))
+                    .is_some_and(|m| m > params.exit_points_cos)
+            {
                 stop = Stop::Outside;
                 break;
             }

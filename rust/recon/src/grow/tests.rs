@@ -214,6 +214,34 @@ fn the_exit_rule_waits_for_exit_after() {
 }
 
 #[test]
+fn the_points_exit_rule_ends_where_the_seen_hair_stands_out_of_the_surface() {
+    // An outer surface at z = 0 (sd_outer = z); the flow rises through it at 60° from the
+    // horizontal. Where the directed points at the surface stand out of it too (spikes), growth
+    // ends there; where they lie along it (hair combed flat), the strand slides along the surface
+    // as before, and so it does with the rule off.
+    let up = Vec3::new(0.5, 0.0, 0.75f32.sqrt());
+    let mut f = flow(|_| up);
+    for i in 0..f.grid.len() {
+        f.sd_outer[i] = f.grid.centre(i).z;
+    }
+    let at_surface = |t: Vec3| {
+        let pts: Vec<Vec3> =
+            (0..400).map(|k| Vec3::new(-0.02 + 0.0005 * (k % 200) as f32, 0.0005 * (k / 200) as f32, 0.0)).collect();
+        PointIndex::new(pts, vec![t; 400])
+    };
+    let (spikes, flat) = (at_surface(up), at_surface(Vec3::X));
+    let rule = GrowParams { exit_points_cos: 0.5, max_length: 0.1, ..GrowParams::default() };
+    let root = Vec3::new(-0.03, 0.0, -0.02);
+    let reach = |pts: &[Vec3]| pts.iter().map(|p| p.x).fold(f32::MIN, f32::max);
+    let (a, stop) = grow_one(&f, Some(&spikes), root, up, &rule);
+    assert_eq!(stop, Stop::Outside);
+    assert!(reach(&a) < 0.0, "ended at x = {} beyond the spikes' patch", reach(&a));
+    let (b, _) = grow_one(&f, Some(&flat), root, up, &rule);
+    let (c, _) = grow_one(&f, Some(&spikes), root, up, &GrowParams { exit_points_cos: 1.0, ..rule });
+    assert!(reach(&b) > 0.03 && reach(&c) > 0.03, "slid to x = {} and {}", reach(&b), reach(&c));
+}
+
+#[test]
 fn tracing_follows_the_points_where_the_field_is_smooth() {
     // The field points straight down; directed points lie along a helix of 6 mm radius that
     // hangs from the root. Without tracing a strand goes straight down; with it, it keeps to
