@@ -60,6 +60,16 @@ pub struct DirectionParams {
     pub side_weight: f32,
     /// Diffusion: edge weights fall off as `e^(−d/edge_scale)`, metres.
     pub edge_scale: f32,
+    /// Diffusion: weight of a prior away from the scalp, per unit of `|d · n| − outward_min`, for
+    /// lines within `outward_dist` of the scalp (`n`: its normal at the closest point); 0: off.
+    /// Hair leaves the scalp, so a line that stands steeply off it (spiky hair, hair with volume)
+    /// points away from it; hair that lies along the head or hangs below it gets no such prior.
+    #[serde(default)]
+    pub outward_weight: f32,
+    #[serde(default = "outward_min")]
+    pub outward_min: f32,
+    #[serde(default = "outward_dist")]
+    pub outward_dist: f32,
     /// Diffusion: conjugate-gradient tolerance (relative residual) and iteration cap.
     pub tolerance: f32,
     pub max_iterations: usize,
@@ -73,6 +83,14 @@ pub enum DirectionSolver {
     Tree,
     /// Least squares over the whole graph at once.
     Diffusion,
+}
+
+fn outward_min() -> f32 {
+    0.5
+}
+
+fn outward_dist() -> f32 {
+    0.05
 }
 
 impl Default for DirectionParams {
@@ -89,6 +107,9 @@ impl Default for DirectionParams {
             gravity_min: 0.2,
             side_weight: 0.01,
             edge_scale: 0.003,
+            outward_weight: 0.0,
+            outward_min: outward_min(),
+            outward_dist: outward_dist(),
             tolerance: 1e-5,
             max_iterations: 2000,
         }
@@ -154,7 +175,10 @@ pub fn global_directions(
     let anchor = anchors(points, scalp, params);
     let (dirs, mut stats) = match params.solver {
         DirectionSolver::Tree => tree_signs(points, &nbrs, &anchor, params),
-        DirectionSolver::Diffusion => diffusion_signs(points, &nbrs, &anchor, params),
+        DirectionSolver::Diffusion => {
+            let outward = (params.outward_weight > 0.0).then(|| scalp_normals(points, scalp, params.outward_dist));
+            diffusion_signs(points, &nbrs, &anchor, outward.as_deref(), params)
+        }
     };
     stats.anchors = anchor.iter().filter(|a| **a != 0).count() as u64;
     (
@@ -178,6 +202,11 @@ fn knn_graph(points: &OrientedPoints, params: &DirectionParams) -> Vec<Vec<(u32,
                 .collect()
         })
         .collect()
+}
+
+/// Per point: the scalp's normal at its closest point within `max_dist`, else zero.
+fn scalp_normals(points: &OrientedPoints, scalp: &Scalp, max_dist: f32) -> Vec<Vec3> {
+    points.positions.par_iter().map(|&p| scalp_point(scalp, p, max_dist).map_or(Vec3::ZERO, |sp| sp.normal)).collect()
 }
 
 /// Per point: +1 or −1 where the sign is given by S(p_s) (near the scalp, not across S), else 0.
@@ -316,6 +345,7 @@ fn diffusion_signs(
     points: &OrientedPoints,
     nbrs: &[Vec<(u32, f32)>],
     anchor: &[i8],
+    outward: Option<&[Vec3]>,
     params: &DirectionParams,
 ) -> (Vec<Vec3>, DirectionStats) {
     let n = points.len();
@@ -367,7 +397,13 @@ fn diffusion_signs(
             } else {
                 let dz = dir[i].z;
                 let w = params.gravity_weight * (dz.abs() - params.gravity_min).max(0.0);
-                (w + 1e-4, if dz > 0.0 { -1.0 } else { 1.0 })
+                let down = if dz > 0.0 { -1.0 } else { 1.0 };
+                let Some(c) = outward.map(|o| dir[i].dot(o[i])).filter(|c| c.abs() > params.outward_min) else {
+                    return (w + 1e-4, down);
+                };
+                // Both priors: the weighted mean of their signs.
+                let wo = params.outward_weight * (c.abs() - params.outward_min);
+                (w + wo + 1e-4, (w * down + wo * c.signum()) / (w + wo))
             }
         })
         .unzip();
@@ -506,6 +542,29 @@ mod tests {
             assert!(stats.anchors > 0);
             assert_eq!(agreement(&got, &truth), 100.0, "{solver:?}");
         }
+    }
+
+    #[test]
+    fn spikes_standing_off_the_scalp_point_away_from_it_with_the_outward_prior() {
+        // Spikes rise off the wall at 37° above the horizontal, seen from 2 cm out (no anchor
+        // within reach): "downward" makes them all point at the scalp; the prior away from the
+        // scalp turns them round.
+        let scalp = wall_scalp();
+        let d = Vec3::new(0.8, 0.0, 0.6);
+        let mut strands = Vec::new();
+        for a in 0..6 {
+            for b in 0..6 {
+                let root = Vec3::new(0.02, -0.05 + 0.02 * a as f32, 0.05 + 0.02 * b as f32);
+                strands.push((0..30).map(|k| root + d * (0.001 * k as f32)).collect());
+            }
+        }
+        let (pts, truth) = lines(&strands);
+        let (got, stats) = global_directions(&pts, &scalp, &DirectionParams::default());
+        assert_eq!(stats.anchors, 0);
+        assert_eq!(agreement(&got, &truth), 0.0, "the downward prior alone");
+        let params = DirectionParams { outward_weight: 2.0, ..DirectionParams::default() };
+        let (got, _) = global_directions(&pts, &scalp, &params);
+        assert_eq!(agreement(&got, &truth), 100.0, "with the outward prior");
     }
 
     #[test]
