@@ -112,6 +112,10 @@ pub struct GrowParams {
     /// strand's own step leaves it at more than that too, past `exit_points_after` metres of arc.
     /// Hair that lies along the outer surface (long hair) never meets it; hair whose tips stand
     /// out of the surface (spiky hair) ends there instead of sliding on over the head (1: off).
+    /// Measured at commit 72cbb8e (the init stage alone on the held-out spiky style's tuning seed,
+    /// colours preset, undirected F1 at 2 mm/20°): at 0.5 the guides are 4.4 cm long on average
+    /// against 22 cm (the ground truth's 5.5 cm), but F1 stays 10.6 → 10.3, the strands being in
+    /// the wrong place (research/notes/volume-study.md, section 5); so it is off.
     #[serde(default = "off")]
     pub exit_points_cos: f32,
     #[serde(default = "one_cm")]
