@@ -17,6 +17,9 @@ per cell (millimetres). The footer names the commits of the runs.
     for s in straight spiky coils; do target/release/hairrecon reconstruct B/colors_${s}_brown --out R/$s; done
     python3 scripts/style_table.py R/* --crown
 
+``--write FILE`` puts the table between the markers ``<!-- styles:begin -->`` and ``<!-- styles:end -->`` of FILE
+(docs/reconstruction.md holds the held-out styles' table that way).
+
 Standard library only (``--crown`` needs the hairrecon binary: target/release/hairrecon, then PATH).
 """
 
@@ -31,6 +34,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 THRESHOLDS = [(1.0, 10.0), (2.0, 20.0), (3.0, 30.0)]
+BEGIN = "<!-- styles:begin -->"
+END = "<!-- styles:end -->"
 
 
 class RunError(Exception):
@@ -147,6 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--crown", action="store_true", help="also the hair's height over the crown (hairrecon eval)")
     ap.add_argument("--hairrecon-bin", help="the hairrecon binary for --crown")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON instead of the table")
+    ap.add_argument("--write", type=Path, metavar="FILE", help=f"put the table between {BEGIN} and {END} in FILE")
     a = ap.parse_args(argv)
     try:
         rows = [read_run(r) for r in a.runs]
@@ -162,11 +168,26 @@ def main(argv: list[str] | None = None) -> int:
                 c = crown(r, exe)
                 if c:
                     r["crown"] = c
+        if a.write is not None:
+            write_block(a.write, table(rows, a.baseline))
+            return 0
     except RunError as e:
         print(f"style_table: {e}", file=sys.stderr)
         return 1
     sys.stdout.write(json.dumps(rows, indent=1) + "\n" if a.json else table(rows, a.baseline))
     return 0
+
+
+def write_block(path: Path, block: str) -> None:
+    """Replaces what lies between the markers in `path` (each there once) with `block`."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise RunError(f"{path}: cannot read it ({e.strerror})")
+    if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(END) < text.index(BEGIN):
+        raise RunError(f"{path}: needs one '{BEGIN}' followed by one '{END}'")
+    i, j = text.index(BEGIN) + len(BEGIN), text.index(END)
+    path.write_text(text[:i] + "\n" + block + text[j:], encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -61,3 +61,16 @@ def test_a_run_without_scores_is_a_clear_error(tmp_path, capsys):
     assert "no scores" in capsys.readouterr().err
     assert style_table.main([str(tmp_path / "missing")]) == 1
     assert "cannot read it" in capsys.readouterr().err
+
+
+def test_write_replaces_the_block_between_the_markers(tmp_path):
+    a = make_run(tmp_path, "r1", "straight", 60.0, 62.0)
+    doc = tmp_path / "doc.md"
+    doc.write_text("# T\n\n<!-- styles:begin -->\nold table\n<!-- styles:end -->\n\nafter\n")
+    assert style_table.main([str(a), "--write", str(doc)]) == 0
+    text = doc.read_text()
+    assert "old table" not in text
+    assert "| straight | 70.0 · 80.0 · 90.0 | 72.0 · 82.0 · 92.0 | 81.0 | +0.0 |" in text
+    assert text.startswith("# T\n\n<!-- styles:begin -->\n| style |") and text.endswith("<!-- styles:end -->\n\nafter\n")
+    doc.write_text("no markers\n")
+    assert style_table.main([str(a), "--write", str(doc)]) == 1
