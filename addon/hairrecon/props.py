@@ -106,15 +106,18 @@ class HairreconSettings(bpy.types.PropertyGroup):
                              "period (the radius follows from a 60° pitch)"),
             ("OFF", "Off", "Strands follow the hair's visible direction, as for straight and wavy hair"),
             ("CUSTOM", "Custom", "Ringlets of the radius, period and handedness given below"),
+            ("COILS", "Tight Coils", "Coils finer than the photos resolve (Auto cannot tell them): strands follow "
+                                     "the ropes the photos show, with helices of the radius, period and "
+                                     "handedness given below"),
         ),
         default="AUTO",
     )
     curl_radius_mm: FloatProperty(name="Curl Radius (mm)", default=6.5, min=0.5, max=50.0,
-                                  description="Radius of the ringlets (Custom curls)")
+                                  description="Radius of the ringlets (Custom curls, Tight Coils)")
     curl_period_mm: FloatProperty(name="Curl Period (mm)", default=22.0, min=2.0, max=200.0,
-                                  description="Length along the ringlet per turn (Custom curls)")
+                                  description="Length along the ringlet per turn (Custom curls, Tight Coils)")
     curl_left: BoolProperty(name="Left-Handed Curls", default=False,
-                            description="Custom curls turn left-handed from root to tip (off: right-handed)")
+                            description="Custom curls and Tight Coils turn left-handed from root to tip (off: right-handed)")
     stop_after: StringProperty(
         name="Stop After",
         description="Advanced: stop the pipeline after this stage: orient2d, orient3d, partings, direction, init (empty = run it all)",

@@ -86,8 +86,9 @@ def _accepts(fn, name: str) -> bool:
 
 def curl_option(mode: str, radius_mm: float, period_mm: float, left: bool) -> str:
     """The library's `curl` argument for the panel's Curls settings."""
-    if mode == "CUSTOM":
-        return f"{radius_mm:g},{period_mm:g},{-1 if left else 1}"
+    if mode in ("CUSTOM", "COILS"):
+        curl = f"{radius_mm:g},{period_mm:g},{-1 if left else 1}"
+        return curl if mode == "CUSTOM" else f"fine:{curl}"
     return "off" if mode == "OFF" else "auto"
 
 

@@ -94,7 +94,7 @@ class HAIRRECON_PT_advanced(bpy.types.Panel):
         layout.prop(s, "hull_trim")
         layout.prop(s, "parting")
         layout.prop(s, "curl")
-        if s.curl == "CUSTOM":
+        if s.curl in ("CUSTOM", "COILS"):
             layout.prop(s, "curl_radius_mm")
             layout.prop(s, "curl_period_mm")
             layout.prop(s, "curl_left")

@@ -220,7 +220,7 @@ def task_pipeline(p):
     out["parting_switch"] = switch("parting", "partings", lambda m: m["partings"])
     # the panel's Curls settings reach the keyword the add-on passes
     out["curl_switch"] = {"panel_default": s.curl}
-    for mode, left in (("AUTO", False), ("OFF", False), ("CUSTOM", True)):
+    for mode, left in (("AUTO", False), ("OFF", False), ("CUSTOM", True), ("COILS", False)):
         s.curl, s.curl_radius_mm, s.curl_period_mm, s.curl_left = mode, 5.5, 18.0, left
         sess = session_mod.Session.prepare(bpy.context)
         try:

@@ -311,6 +311,8 @@ def test_curl_settings_reach_the_library(pipeline):
     assert c["AUTO"] == "auto" and c["OFF"] == "off", c
     # custom: radius and period in mm, left-handed as -1 (the form `--curl` and curl= parse)
     assert c["CUSTOM"] == "5.5,18,-1", c
+    # tight coils: the same numbers after `fine:` (ringlets finer than the photos, grown along their ropes)
+    assert c["COILS"] == "fine:5.5,18,1", c
 
 
 def test_the_head_mesh_reaches_the_capture(pipeline):

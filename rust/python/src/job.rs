@@ -134,7 +134,7 @@ fn run_error_to_py(e: RunError) -> PyErr {
 /// steps (None: the library's defaults); `hull_trim=False` keeps the initial strands' ends that a
 /// view sees where its mask has no hair (by default they are cut at the visual hull before DR);
 /// `parting=False` does not look for partings (by default, where the views see the scalp's skin,
-/// the hair beside it leaves it sideways); `curl` is `"auto"` (the images decide), `"off"` or `"RADIUS_MM,PERIOD_MM,HAND"` (`--curl`).
+/// the hair beside it leaves it sideways); `curl` is `"auto"` (the images decide), `"off"`, `"RADIUS_MM,PERIOD_MM,HAND"` or `"fine:RADIUS_MM,PERIOD_MM,HAND"` (`--curl`).
 /// The run owns `out_dir`: it clears what an earlier run left there for the stages it makes again,
 /// and refuses a folder holding other files (`InputError`) unless `overwrite=True` (`--overwrite`).
 /// A cancelled or failed run keeps the stages it finished (listed in `report.json`), no result.

@@ -243,7 +243,7 @@ impl ReconstructConfig {
         if !(self.straight_length.is_finite() && self.straight_length > 0.0) {
             return Err(ConfigError::Invalid(format!("straight_length {} must be positive", self.straight_length)));
         }
-        if let CurlMode::Fixed(c) = self.curl {
+        if let CurlMode::Fixed(c) | CurlMode::Fine(c) = self.curl {
             c.validate().map_err(|e| ConfigError::Invalid(e.to_string()))?;
         }
         Ok(())

@@ -199,10 +199,52 @@ pub fn ringlet_axes(points: &OrientedPoints, raw: &TriMesh, curl: &Curl, opts: &
     Some(OrientedPoints { positions: points.positions.clone(), directions, confidence: points.confidence.clone() })
 }
 
+/// The directions the growth follows with curls `curl`: the ringlet axes from the points' tangents
+/// ([`ringlet_axes`], hung when [`CurlOptions::hang`]), or, for curls finer than the photos
+/// resolve (`fine`, [`crate::curl::CurlMode::Fine`]), the points' own directions, which follow the
+/// ringlets' ropes and are signed as for plain hair. `None` when the blur grid would be too large.
+pub fn growth_axes(
+    points: &OrientedPoints,
+    raw: &TriMesh,
+    curl: &Curl,
+    fine: bool,
+    opts: &CurlOptions,
+) -> Option<OrientedPoints> {
+    if fine {
+        return Some(points.clone());
+    }
+    let mut axes = ringlet_axes(points, raw, curl, opts)?;
+    if opts.hang {
+        hang(&mut axes);
+    }
+    Some(axes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::curl::test_util::{helix, plane_facing_x, CURL};
+
+    #[test]
+    fn fine_curls_grow_along_the_points_and_resolved_ones_along_turned_tangents() {
+        // Rope directions seen on fine coils: tilted 30° off -z, some pointing up (signed by the
+        // direction stage, not by hanging). Fine curls keep them as they are; resolved ringlets turn
+        // them by the pitch angle and hang them.
+        let n = 200;
+        let positions: Vec<Vec3> =
+            (0..n).map(|k| Vec3::new(CURL.radius, -0.05 + 0.0005 * k as f32, -0.1 - 0.0003 * k as f32)).collect();
+        let d = Vec3::new(0.0, 0.5, -(0.75f32).sqrt());
+        let directions: Vec<Vec3> = (0..n).map(|k| if k % 4 == 0 { -d } else { d }).collect();
+        let points = OrientedPoints { positions, directions, confidence: vec![1.0; n] };
+        let raw = plane_facing_x(CURL.radius, [-0.1, 0.1], [-0.36, -0.06]);
+        let opts = CurlOptions::default();
+        let fine = growth_axes(&points, &raw, &CURL, true, &opts).unwrap();
+        assert_eq!(fine, points);
+        let turned = growth_axes(&points, &raw, &CURL, false, &opts).unwrap();
+        let moved = turned.directions.iter().zip(&points.directions).filter(|(a, b)| a.dot(**b).abs() < 0.9).count();
+        assert!(moved > n * 9 / 10, "{moved} of {n} turned");
+        assert!(turned.directions.iter().all(|a| a.z <= 0.0), "hung: none points up");
+    }
 
     #[test]
     fn turning_the_visible_tangents_gives_the_axis() {

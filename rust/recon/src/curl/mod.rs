@@ -25,7 +25,7 @@ mod axes;
 mod helix;
 mod period;
 
-pub use axes::{hang, mean_down, onto_axes, ringlet_axes};
+pub use axes::{growth_axes, hang, mean_down, onto_axes, ringlet_axes};
 pub use helix::{centreline, sweep_helices};
 pub use period::{bump_period, BumpOptions, BumpReport};
 
@@ -64,8 +64,8 @@ impl Curl {
 /// Why a curl (or its text form) cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CurlError {
-    /// The text is not `off`, `auto` or numbers.
-    #[error("curl {0:?}: give off, auto or RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)")]
+    /// The text is not `off`, `auto` or numbers (after `fine:` or not).
+    #[error("curl {0:?}: give off, auto, RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1) or fine:RADIUS_MM,PERIOD_MM,HAND")]
     Syntax(String),
     /// Not three numbers.
     #[error("curl {0:?}: give three numbers RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1)")]
@@ -93,16 +93,27 @@ pub enum CurlMode {
     Auto,
     /// These curls.
     Fixed(Curl),
+    /// These curls, finer than the photos resolve (tight coils): each ringlet shows as a rope whose
+    /// axis the points' directions follow (the strands' own tangents are not seen), so the strands
+    /// grow from the points' directions as for plain hair and the helices are swept about them,
+    /// without turning the tangents into ringlet axes. `auto` cannot tell such hair: the ropes'
+    /// surface shows no period in the raw mesh of the colours preset (see docs/reconstruction.md).
+    Fine(Curl),
 }
 
 impl std::str::FromStr for CurlMode {
     type Err = CurlError;
 
-    /// `off`, `auto` or `RADIUS_MM,PERIOD_MM,HAND` (HAND 1 right-handed, -1 left-handed).
+    /// `off`, `auto`, `RADIUS_MM,PERIOD_MM,HAND` (HAND 1 right-handed, -1 left-handed) or
+    /// `fine:RADIUS_MM,PERIOD_MM,HAND`.
     fn from_str(s: &str) -> Result<Self, CurlError> {
         match s {
             "off" => Ok(Self::Off),
             "auto" => Ok(Self::Auto),
+            _ if s.starts_with("fine:") => match s["fine:".len()..].parse()? {
+                Self::Fixed(c) => Ok(Self::Fine(c)),
+                _ => Err(CurlError::Syntax(s.into())),
+            },
             _ => {
                 let v: Vec<f32> = s
                     .split(',')
@@ -245,6 +256,9 @@ mod tests {
         assert!("6.5,0,1".parse::<CurlMode>().unwrap_err().to_string().contains("period"));
         assert!("0,22,1".parse::<CurlMode>().unwrap_err().to_string().contains("radius"));
         assert!("6.5,22,0".parse::<CurlMode>().unwrap_err().to_string().contains("handedness"));
+        assert_eq!("fine:6.5,22,1".parse::<CurlMode>(), Ok(CurlMode::Fine(CURL)));
+        assert!("fine:6.5,0,1".parse::<CurlMode>().unwrap_err().to_string().contains("period"));
+        assert!("fine:auto".parse::<CurlMode>().unwrap_err().to_string().contains("fine:RADIUS_MM"));
     }
 
     #[test]

@@ -17,7 +17,7 @@ use hairrecon_core::StrandSet;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{ReconstructConfig, Stage};
-use crate::curl::{hang, onto_axes, ringlet_axes, sweep_helices, Curl, CurlMode};
+use crate::curl::{growth_axes, onto_axes, sweep_helices, Curl, CurlMode};
 use crate::curl_choice::{choose, CurlChoiceReport};
 use crate::dr::DrTargets;
 use crate::error::ReconError;
@@ -143,7 +143,7 @@ pub fn run(
     let (guides, children, curl) = if cfg.strand_init {
         let curl = match cfg.curl {
             CurlMode::Off => None,
-            CurlMode::Fixed(c) => Some(c),
+            CurlMode::Fixed(c) | CurlMode::Fine(c) => Some(c),
             CurlMode::Auto => {
                 let targets = || -> Result<DrTargets, ReconError> {
                     Ok(DrTargets::from_capture(ctx.capture, maps, Some(ctx.inner()?), progress)?)
@@ -160,10 +160,8 @@ pub fn run(
             Some(c) => {
                 progress.update("init", 0.7, &format!("curls: growing along the ringlets ({c:?})"));
                 let co = &cfg.curl_options;
-                let mut axes = ringlet_axes(directed, ctx.raw()?.mesh(), &c, co).ok_or(ReconError::CurlGrid)?;
-                if co.hang {
-                    hang(&mut axes);
-                }
+                let fine = matches!(cfg.curl, CurlMode::Fine(_));
+                let mut axes = growth_axes(directed, ctx.raw()?.mesh(), &c, fine, co).ok_or(ReconError::CurlGrid)?;
                 seen_axes = Some(axes.clone());
                 if co.onto_axes {
                     onto_axes(directed, &mut axes, &c);
