@@ -110,7 +110,7 @@ fn dr_flags_reach_the_options() {
         ("--dr-width-mm", "0", "--dr-width-mm must be a positive number"),
         ("--stop-after", "paint", "use one of head, masks, orient2d, orient3d, partings, direction, init, dr"),
         ("--from", "paint", "use one of head, masks, orient2d, orient3d, partings, direction, init, dr"),
-        ("--curl", "tight", "give off, auto or RADIUS_MM,PERIOD_MM,HAND"),
+        ("--curl", "tight", "give off, auto, RADIUS_MM,PERIOD_MM,HAND (e.g. 6.5,22,1) or fine:RADIUS_MM"),
         ("--curl", "6.5,22", "give three numbers"),
         ("--curl", "6.5,22,2", "give 1 (right) or -1 (left)"),
     ] {
