@@ -37,10 +37,10 @@ from conftest import hairrecon_bin
 CAMERAS = Path(__file__).parent / "data" / "test_preset_cameras_5573f38.json"
 DR_ARGS = ["--guides", "300", "--children", "3000", "--dr-iters-guides", "8", "--dr-iters-children", "4"]
 DIGESTS = {
-    "init_strands.hair": "e23af22146e98dae2fbaed3317127f8ccdd95c7cc366d0ea57b5632f0dd70656",
-    "init_guides.hair": "46aa69573f4f86b299c0f3f202073a54e0fa1cf111b1c16a5451ab588d58e14e",
-    "strands.hair": "63e18c2077e306d94fd05cc155ab7f699dbb94fd25684315aae8cc4a546a4794",
-    "guides.hair": "421735dd501f956cab2703b637126ce20640f48575bab039109eaa3497f981c7",
+    "init_strands.hair": "87cb568f22f973cc90a23e9b2f69dce3d1e5e4249ce59c823270f0bf12e1c0bd",
+    "init_guides.hair": "645619c6422994c911822fdb21e65fc06182c5f029aa36337df0faf75ca4a26d",
+    "strands.hair": "1ab9bf05de57bf8089d211163786551e1a0acd5e75e97a2cac0a3bf06e576079",
+    "guides.hair": "21ccc46a3b6e3a41f7b70b39f924a88b273552172561c6127a23c432055ceab9",
 }
 
 
