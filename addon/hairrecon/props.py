@@ -103,7 +103,7 @@ class HairreconSettings(bpy.types.PropertyGroup):
         name="Curls",
         items=(
             ("AUTO", "Auto", "The photos decide whether the hair is curly, the ringlets' handedness and their "
-                             "period (the radius follows from a 60° pitch)"),
+                             "period (the radius follows from a 60° pitch, 50° for looser curls)"),
             ("OFF", "Off", "Strands follow the hair's visible direction, as for straight and wavy hair"),
             ("CUSTOM", "Custom", "Ringlets of the radius, period and handedness given below"),
             ("COILS", "Tight Coils", "Coils finer than the photos resolve (Auto cannot tell them): strands follow "

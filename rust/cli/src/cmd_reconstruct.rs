@@ -67,7 +67,7 @@ pub struct ReconstructArgs {
     #[arg(long)]
     no_strand_init: bool,
     /// Curls: `auto` (the capture decides whether the hair is curly, the handedness, and the period
-    /// from the hair surface's bumps, with the radius of a 60° pitch), `off` (strands follow the
+    /// from the hair surface's bumps, with the radius of a 60° pitch, or 50° for looser curls), `off` (strands follow the
     /// points' directions, as for straight and wavy hair), RADIUS_MM,PERIOD_MM,HAND with HAND 1
     /// right-handed, -1 left-handed (e.g. 6.5,22,1), or fine:RADIUS_MM,PERIOD_MM,HAND for coils finer
     /// than the photos resolve (strands grow along the ropes the photos show, helices about them;

@@ -172,7 +172,10 @@ fn curl_auto_keeps_straight_hair_and_a_fixed_curl_makes_helices() {
     let json = |p: PathBuf| -> serde_json::Value { serde_json::from_slice(&read(p)).unwrap() };
     let init_stats = |d: &Path| json(d.join("report.json"))["stages"][4]["stats"].clone();
     let auto = &init_stats(&a)["curl_auto"];
-    assert!(auto["down_tangents"].as_f64().unwrap() > auto["down_right"].as_f64().unwrap(), "{auto}");
+    let nominal = &auto["pitches"][0];
+    assert!(nominal["pitch_deg"].as_f64() == Some(60.0), "{auto}");
+    assert!(auto["down_tangents"].as_f64().unwrap() > nominal["down_right"].as_f64().unwrap(), "{auto}");
+    assert!(auto["pitch_deg"].is_null(), "{auto}");
     assert!(json(a.join("init.json"))["curl"].is_null() && !a.join("points_axes.ply").exists());
     assert!(read(a.join("strands.hair")) == read(b.join("strands.hair")), "auto changed straight hair");
     let curl = &json(c.join("init.json"))["curl"];

@@ -155,6 +155,10 @@ pub struct CurlOptions {
     /// read off the surface ([`bump_period`]); the growth's axes are made again at the chosen curl's
     /// pitch.
     pub nominal_pitch_deg: f32,
+    /// `auto`: lower pitches (degrees) tried in turn when the nominal finds no curls, for looser
+    /// curls; 0 skips an entry ([`crate::curl_choice`]).
+    #[serde(default = "default_lower_pitches")]
+    pub lower_pitches_deg: [f32; 2],
     /// `auto`: whether the period is read off the surface's bumps ([`bump_period`]), and how; when
     /// off, or when the surface shows none, the misfit chooses ([`crate::curl_choice`]).
     pub bump_period: bool,
@@ -175,6 +179,10 @@ pub struct CurlOptions {
     pub onto_axes: bool,
 }
 
+fn default_lower_pitches() -> [f32; 2] {
+    [50.0, 0.0]
+}
+
 impl Default for CurlOptions {
     fn default() -> Self {
         // The settings of the ringlet-axes study (commit 54da667, research/notes/curly-study.md):
@@ -188,6 +196,7 @@ impl Default for CurlOptions {
             ramp: 0.015,
             step: 0.001,
             nominal_pitch_deg: 60.0,
+            lower_pitches_deg: default_lower_pitches(),
             bump_period: true,
             bumps: BumpOptions::default(),
             min_down_gain: 0.08,
