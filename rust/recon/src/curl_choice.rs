@@ -9,11 +9,14 @@
 //! the tangents less, so axes turned by the nominal pitch overshoot them and hang no better than the
 //! tangents; when the nominal pitch finds no curls, the lower pitches of
 //! [`crate::curl::CurlOptions::lower_pitches_deg`] are tried in turn, each asking a gain in proportion to
-//! what perfect ringlets of that pitch would gain (`1 − cos θ` of a strand hanging along its axis):
-//! the first that finds curls sets the pitch. Then the period is read off the hair surface's bumps
-//! along those axes ([`crate::curl::bump_period`]), and the radius is the one that gives that pitch at
-//! that period ([`crate::curl::CurlOptions::nominal_pitch_deg`]). The pitch is assumed, not measured:
-//! the points see the ringlets' visible side only, where the tangents are the same at every turn.
+//! what perfect ringlets of that pitch would gain (`1 − cos θ` of a strand hanging along its axis);
+//! the first that finds curls gives the axes. Then the period is read off the hair surface's bumps
+//! along those axes ([`crate::curl::bump_period`]), and the radius is the one that gives the nominal
+//! pitch at that period ([`crate::curl::CurlOptions::nominal_pitch_deg`]), whichever pitch found
+//! the curls: the lower pitches only decide that the hair is curly (on a curly capture found at 50°
+//! the radius of a 50° pitch scored 9 points lower; docs/reconstruction.md, "Looser curls"). The
+//! pitch is assumed, not measured: the points see the ringlets' visible side only, where the
+//! tangents are the same at every turn.
 //!
 //! When the surface shows no period (or [`crate::curl::CurlOptions::bump_period`] is off), strands are grown
 //! along the axes and the curl (of the radii and periods of the options) whose helices about them
@@ -86,10 +89,9 @@ pub fn choose(
 ) -> Result<(Option<Curl>, CurlChoiceReport), ReconError> {
     let co = &cfg.curl_options;
     let (found, mut report) = find_curls(directed, raw, co, progress)?;
-    let Some(Found { hand, mut axes, pitch_deg }) = found else {
+    let Some(Found { hand, mut axes }) = found else {
         return Ok((None, report));
     };
-    let tan_pitch = pitch_deg.to_radians().tan();
     if co.hang {
         hang(&mut axes);
     }
@@ -100,7 +102,8 @@ pub fn choose(
         let period = bumps.period;
         report.bumps = Some(bumps);
         if let Some(period) = period {
-            let c = Curl { radius: period * tan_pitch / std::f32::consts::TAU, period, hand };
+            let tan = co.nominal_pitch_deg.to_radians().tan();
+            let c = Curl { radius: period * tan / std::f32::consts::TAU, period, hand };
             if c.validate().is_ok() {
                 report.chosen_by = Some("bumps");
                 return Ok((Some(c), report));
@@ -134,11 +137,10 @@ pub fn choose(
     Ok((best.1, report))
 }
 
-/// Curls found by [`find_curls`]: their handedness, the ringlet axes (not hung) and the pitch.
+/// Curls found by [`find_curls`]: their handedness and the ringlet axes (not hung).
 struct Found {
     hand: f32,
     axes: OrientedPoints,
-    pitch_deg: f32,
 }
 
 /// Whether the hair is curly: the nominal pitch, then the lower ones, until the better-hanging
@@ -170,7 +172,7 @@ fn find_curls(
         report.hand = hand;
         if down >= down_tangents + min_gain {
             report.pitch_deg = Some(pitch_deg);
-            return Ok((Some(Found { hand, axes, pitch_deg }), report));
+            return Ok((Some(Found { hand, axes }), report));
         }
     }
     Ok((None, report))
@@ -213,7 +215,7 @@ mod tests {
         let (points, raw) = ringlets(&loose);
         let (found, report) = find_curls(&points, &raw, &co, &NoProgress).unwrap();
         let found = found.expect("curls found");
-        assert_eq!((found.hand, found.pitch_deg), (1.0, 50.0), "{report:?}");
+        assert_eq!((found.hand, report.pitch_deg), (1.0, Some(50.0)), "{report:?}");
         assert_eq!(report.pitches.len(), 2, "{report:?}");
         let [nominal, lower] = [report.pitches[0], report.pitches[1]];
         assert!(nominal.down_right < report.down_tangents + nominal.min_gain, "{report:?}");
@@ -223,7 +225,7 @@ mod tests {
         // The paper's tight ringlets (6.5 mm, 22 mm: 62°) are found at the nominal pitch.
         let (points, raw) = ringlets(&crate::curl::test_util::CURL);
         let (found, report) = find_curls(&points, &raw, &co, &NoProgress).unwrap();
-        assert_eq!(found.map(|f| f.pitch_deg), Some(60.0), "{report:?}");
+        assert!(found.is_some() && report.pitch_deg == Some(60.0), "{report:?}");
         // Hair hanging straight down is curly at no pitch.
         let straight = OrientedPoints {
             positions: points.positions.clone(),
