@@ -30,7 +30,10 @@ use hairrecon_core::mesh::TriMesh;
 use hairrecon_core::StrandSet;
 
 use crate::config::ReconstructConfig;
-use crate::curl::{bump_period, hang, mean_down, ringlet_axes, sweep_helices, BumpReport, Curl, CurlOptions};
+use crate::curl::{
+    bump_period, hang, mean_down, ringlet_axes_from_normals, surface_normals, sweep_helices, BumpReport, Curl,
+    CurlOptions,
+};
 use crate::dr::optimize::orientation_misfit;
 use crate::dr::DrTargets;
 use crate::error::ReconError;
@@ -156,14 +159,15 @@ fn find_curls(
     let mut report = CurlChoiceReport { down_tangents, ..Default::default() };
     let nominal_gain = 1.0 - co.nominal_pitch_deg.to_radians().cos();
     let lower = co.lower_pitches_deg.iter().copied().filter(|&p| p > 0.0);
+    let normals = surface_normals(directed, raw, co).ok_or(ReconError::CurlGrid)?;
     for pitch_deg in std::iter::once(co.nominal_pitch_deg).chain(lower) {
         progress.check()?;
         progress.update("init", 0.55, &format!("curls: handedness at a {pitch_deg}° pitch"));
         let tan = pitch_deg.to_radians().tan();
         let curl =
             |hand: f32| Curl { radius: co.periods[1] * tan / std::f32::consts::TAU, period: co.periods[1], hand };
-        let right = ringlet_axes(directed, raw, &curl(1.0), co).ok_or(ReconError::CurlGrid)?;
-        let left = ringlet_axes(directed, raw, &curl(-1.0), co).ok_or(ReconError::CurlGrid)?;
+        let right = ringlet_axes_from_normals(directed, &normals, &curl(1.0), co).ok_or(ReconError::CurlGrid)?;
+        let left = ringlet_axes_from_normals(directed, &normals, &curl(-1.0), co).ok_or(ReconError::CurlGrid)?;
         let (down_right, down_left) = (mean_down(&right), mean_down(&left));
         let min_gain = co.min_down_gain * (1.0 - pitch_deg.to_radians().cos()) / nominal_gain;
         report.pitches.push(PitchTest { pitch_deg, down_right, down_left, min_gain });

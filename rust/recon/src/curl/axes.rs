@@ -171,25 +171,46 @@ fn rotate(v: Vec3, axis: Vec3, angle: f32) -> Vec3 {
     v * c + axis.cross(v) * s + axis * axis.dot(v) * (1.0 - c)
 }
 
+/// The raw mesh's blurred unit normal at each point ([`CurlOptions::normal_sigma`]), zero where it
+/// is undefined: what [`ringlet_axes_from_normals`] turns the tangents about, the same for every curl
+/// tried. `None` when the grid would be too large (a scene far wider than a head).
+pub fn surface_normals(points: &OrientedPoints, raw: &TriMesh, opts: &CurlOptions) -> Option<Vec<Vec3>> {
+    let normals = raw.compute_vertex_normals();
+    let ncell = (opts.normal_sigma / 4.0).max(0.002);
+    let ngrid = BlurGrid::build(&raw.vertices, &normals, &points.positions, ncell, opts.normal_sigma)?;
+    Some(points.positions.par_iter().map(|p| ngrid.sample(*p).normalize_or_zero()).collect())
+}
+
 /// The ringlet axis at each directed point (module docs). Confidence is kept; a point whose axis is
 /// undefined (no mesh normal or no neighbours) keeps its own direction. `None` when the grid would be
 /// too large (a scene far wider than a head).
 pub fn ringlet_axes(points: &OrientedPoints, raw: &TriMesh, curl: &Curl, opts: &CurlOptions) -> Option<OrientedPoints> {
-    let normals = raw.compute_vertex_normals();
-    let ncell = (opts.normal_sigma / 4.0).max(0.002);
-    let ngrid = BlurGrid::build(&raw.vertices, &normals, &points.positions, ncell, opts.normal_sigma)?;
+    ringlet_axes_from_normals(points, &surface_normals(points, raw, opts)?, curl, opts)
+}
+
+/// [`ringlet_axes`] with the surface's normals at the points given ([`surface_normals`]).
+pub fn ringlet_axes_from_normals(
+    points: &OrientedPoints,
+    normals: &[Vec3],
+    curl: &Curl,
+    opts: &CurlOptions,
+) -> Option<OrientedPoints> {
     let angle = curl.hand * curl.pitch_angle();
     let turned: Vec<Vec3> = points
-        .positions
+        .directions
         .par_iter()
-        .zip(&points.directions)
-        .map(|(p, d)| match ngrid.sample(*p).try_normalize() {
-            Some(n) if opts.project_axes => match (*d - n * d.dot(n)).try_normalize() {
-                Some(flat) => rotate(flat, n, angle),
-                None => *d,
-            },
-            Some(n) => rotate(*d, n, angle),
-            None => *d,
+        .zip(normals)
+        .map(|(d, &n)| {
+            if n == Vec3::ZERO {
+                *d
+            } else if opts.project_axes {
+                match (*d - n * d.dot(n)).try_normalize() {
+                    Some(flat) => rotate(flat, n, angle),
+                    None => *d,
+                }
+            } else {
+                rotate(*d, n, angle)
+            }
         })
         .collect();
     let acell = (opts.axis_sigma / 2.0).max(0.001);

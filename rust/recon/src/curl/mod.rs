@@ -25,7 +25,7 @@ mod axes;
 mod helix;
 mod period;
 
-pub use axes::{growth_axes, hang, mean_down, onto_axes, ringlet_axes};
+pub use axes::{growth_axes, hang, mean_down, onto_axes, ringlet_axes, ringlet_axes_from_normals, surface_normals};
 pub use helix::{centreline, sweep_helices};
 pub use period::{bump_period, BumpOptions, BumpReport};
 
