@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Coverage-guided fuzzing of every reader of hairrecon with libFuzzer, on the stable toolchain: the
-# fuzz crate (fuzz/) is built with LLVM's SanitizerCoverage passes (stable -C flags; no sanitizer) and
-# each target runs from its seeds (fuzz/seeds, the project's own writers' files) and its committed
-# corpus (fuzz/corpus). A crash, a panic, a hang over 10 s or memory over 1 GB is a failure.
+# fuzz crate's targets (fuzz/, feature `libfuzzer`) are built with LLVM's SanitizerCoverage passes
+# (stable -C flags; no sanitizer) and each target runs from its seeds (fuzz/seeds, the project's own
+# writers' files) and its committed corpus (fuzz/corpus). A crash, a panic, a hang over 10 s or memory
+# over 1 GB is a failure.
 #
 #   bash scripts/fuzz.sh                       # every target for 10 s each, one per core at a time
-#                                              # (the test command gives --seconds 5)
+#                                              # (`cargo test` replays the seeds and corpus alone)
 #   bash scripts/fuzz.sh --seconds 60 ply obj  # these targets, one minute each
 #   bash scripts/fuzz.sh --runs 1000000 --keep # the long run: a million executions per target, new
 #                                              # inputs merged into fuzz/corpus (commit them)
@@ -37,11 +38,11 @@ export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
 -Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cdebug-assertions -Coverflow-checks"
 if [ $seeds = 1 ]; then
-  env -u RUSTFLAGS cargo run --quiet --release --manifest-path fuzz/Cargo.toml --example seeds
+  env -u RUSTFLAGS -u CARGO_TARGET_DIR cargo run --quiet --release -p hairrecon-fuzz --example seeds
   exit 0
 fi
 echo "== building the fuzz targets ($host, coverage-instrumented)"
-cargo build --quiet --release --manifest-path fuzz/Cargo.toml --target "$host" --bins
+cargo build --quiet --release -p hairrecon-fuzz --features libfuzzer --target "$host" --bins
 bin="$CARGO_TARGET_DIR/$host/release"
 
 work=$(mktemp -d)

@@ -4,7 +4,7 @@
 //! the budget given to libFuzzer (`scripts/fuzz.sh`) is a finding.
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use hairrecon_core::capture::Capture;
 use hairrecon_core::formats::{self, StrandReadOptions};
@@ -15,15 +15,27 @@ use hairrecon_import::{read_colmap, read_metashape, read_nerf};
 /// Where multi-file inputs (a COLMAP model) split into their files.
 pub const FILE_SEPARATOR: &[u8] = b"\n%%%%\n";
 
-/// A folder of this process for the files a harness writes (in memory where /dev/shm exists).
-fn scratch() -> &'static Path {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
+thread_local! {
+    static SCRATCH: PathBuf = {
         let base = if Path::new("/dev/shm").is_dir() { PathBuf::from("/dev/shm") } else { std::env::temp_dir() };
-        let dir = base.join(format!("hairrecon-fuzz-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("scratch folder");
-        dir
-    })
+        static NEXT: AtomicUsize = AtomicUsize::new(0);
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        base.join(format!("hairrecon-fuzz-{}-{n}", std::process::id()))
+    };
+}
+
+/// A folder of this thread for the files a harness writes (in memory where /dev/shm exists): the
+/// replay test runs targets on several threads at once.
+fn scratch() -> PathBuf {
+    let dir = SCRATCH.with(|d| d.clone());
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+/// Removes this thread's scratch folder (the replay test calls it when a target is done; libFuzzer's
+/// process leaves it, as it leaves its own files, for the run's end).
+pub fn remove_scratch() {
+    let _ = std::fs::remove_dir_all(SCRATCH.with(|d| d.clone()));
 }
 
 fn put(name: &str, bytes: &[u8]) -> PathBuf {
@@ -124,3 +136,21 @@ pub fn photo(data: &[u8]) {
         let _ = photo.oriented();
     }
 }
+
+/// A harness: the fuzzer's bytes to one reader.
+pub type Harness = fn(&[u8]);
+
+/// Every harness by its target's name (the names of `fuzz_targets/`, `fuzz/seeds/` and `fuzz/corpus/`).
+pub const TARGETS: [(&str, Harness); 11] = [
+    ("hair", hair),
+    ("data", data),
+    ("ply", ply),
+    ("obj", obj),
+    ("image", image),
+    ("capture_json", capture_json),
+    ("colmap_text", colmap_text),
+    ("colmap_binary", colmap_binary),
+    ("metashape", metashape),
+    ("nerf", nerf),
+    ("photo", photo),
+];
