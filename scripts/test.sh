@@ -20,10 +20,12 @@ step "links in README.md, docs/ and research/; the README's results table agains
 .venv/bin/python scripts/check_links.py
 .venv/bin/python scripts/results_table.py --straight docs/results/paper_straight.json \
   --curly docs/results/paper_curly.json --check README.md
+# doc and clippy in the release profile: they reuse the proc macros that setup built for it (the dev
+# profile compiles every dependency, proc macros included, at opt-level 3: 186 s against 68 s here)
 step "cargo doc (no warnings)"
-RUSTDOCFLAGS="-D warnings" cargo doc --quiet --workspace --no-deps
+RUSTDOCFLAGS="-D warnings" cargo doc --release --quiet --workspace --no-deps
 step "cargo clippy (all targets, -D warnings)"
-cargo clippy --quiet --workspace --all-targets -- -D warnings
+cargo clippy --release --quiet --workspace --all-targets -- -D warnings
 step "cargo test (release profile; every reader on the fuzzing corpus; the Python module is tested from Python)"
 cargo test --release --workspace --exclude hairrecon-python
 step "pytest tests/python"
