@@ -310,18 +310,28 @@ pub fn solve_flow(
         progress.check()?;
         progress.update("init", 0.4 * k as f32 / dims[2] as f32, "distances");
         let r = k * slab..(k + 1) * slab;
-        sd_outer[r.clone()].par_iter_mut().zip(sd_inner[r.clone()].par_iter_mut()).enumerate().for_each(
-            |(o, (so, si))| {
-                let p = grid.centre(k * slab + o);
-                *so = raw.signed_distance(p, band).unwrap_or(band);
-                *si = if *so <= params.outer_margin {
-                    inner.signed_distance(p, f32::INFINITY).unwrap_or(band)
-                } else {
-                    // Not hair; the value only serves growing's push-out, far from the head.
-                    inner.signed_distance(p, band).unwrap_or(band)
-                };
-            },
-        );
+        // Row by row along x, each query bounded by the last voxel's distance plus the step (a
+        // distance changes by at most the step between neighbours): the same closest points,
+        // found with far fewer of the BVH's nodes opened.
+        let step_bound = |last: Option<f32>| last.map_or(f32::INFINITY, |d| (d + params.voxel) * 1.001 + 1e-6);
+        sd_outer[r.clone()]
+            .par_chunks_mut(dims[0])
+            .zip(sd_inner[r.clone()].par_chunks_mut(dims[0]))
+            .enumerate()
+            .for_each(|(j, (row_outer, row_inner))| {
+                let (mut last_outer, mut last_inner) = (None, None);
+                for (i, (so, si)) in row_outer.iter_mut().zip(row_inner.iter_mut()).enumerate() {
+                    let p = grid.centre(grid.index(i, j, k));
+                    let outer = raw.signed_distance(p, band.min(step_bound(last_outer)));
+                    last_outer = outer.map(f32::abs);
+                    *so = outer.unwrap_or(band);
+                    // Beyond the outer margin the value only serves growing's push-out, far from the head.
+                    let reach = if *so <= params.outer_margin { f32::INFINITY } else { band };
+                    let inner_d = inner.signed_distance(p, reach.min(step_bound(last_inner)));
+                    last_inner = inner_d.map(f32::abs);
+                    *si = inner_d.unwrap_or(band);
+                }
+            });
     }
     // Labels: inside the raw mesh, outside the head, near the seen hair or the scalp.
     let mut label = vec![0u8; n];
