@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import sys
 import time
 import traceback
@@ -189,21 +188,10 @@ def task_pipeline(p):
     out["runs"] = runs
     session_mod = import_module(pkg.__name__ + ".session")
 
-    # the switches' runs resume from one run's first stages (the stages before the switched one)
-    base = Path(p["workdir"]) / "switch_base"
-    hairrecon.reconstruct(p["capture"], str(base), guides=64, children=400, stop_after="direction")
-
-    def switch(name, stage, keep):
-        """The panel's default of the switch `name`, what the module's report shows with the keyword on
-        and off (`keep` picks them) when `stage` runs again, and the keyword the add-on passes for each
-        panel setting."""
+    def switch(name):
+        """The panel's default of the switch `name` and the keyword the add-on passes for each panel
+        setting (what the keyword does in the library: test_switches.py)."""
         report = {"panel_default": bool(getattr(s, name))}
-        for flag in (True, False):
-            folder = Path(p["workdir"]) / f"{name}_{flag}"
-            shutil.copytree(base, folder)
-            r = hairrecon.reconstruct(p["capture"], str(folder), guides=64, children=400, from_stage=stage,
-                                      stop_after=stage, **{name: flag})
-            report[str(flag)] = keep({st["stage"]: st.get("stats") for st in r["report"]["stages"]})
         for flag in (False, True):
             setattr(s, name, flag)
             sess = session_mod.Session.prepare(bpy.context)
@@ -213,11 +201,8 @@ def task_pipeline(p):
                 sess.cleanup()
         return report
 
-    # the visual-hull switch, from the panel's setting to the module's keyword (the test capture's
-    # masks are see-through, so the hull is built and skipped: hull_views 0; off: no hull at all)
-    out["hull_switch"] = switch("hull_trim", "init", lambda m: {k: v for k, v in m["init"].items() if k.startswith("hull")})
-    # the partings switch, likewise (see-through masks: the partings are looked for in no view)
-    out["parting_switch"] = switch("parting", "partings", lambda m: m["partings"])
+    out["hull_switch"] = switch("hull_trim")
+    out["parting_switch"] = switch("parting")
     # the panel's Curls settings reach the keyword the add-on passes
     out["curl_switch"] = {"panel_default": s.curl}
     for mode, left in (("AUTO", False), ("OFF", False), ("CUSTOM", True), ("COILS", False)):

@@ -283,26 +283,13 @@ def test_reconstruct_adds_hair_attached_to_the_scalp(pipeline):
         assert c["uv_back_to_root_max_mm"] < 1.0
 
 
-def test_hull_switch_reaches_the_pipeline(pipeline):
-    h = pipeline["hull_switch"]
-    assert h["panel_default"] is True
-    # on: the hull is built (its views counted: none here, the sparse capture's masks being see-through)
-    assert h["True"] == {"hull_views": 0}, h
-    # off: no hull at all
-    assert h["False"] == {}, h
-    # the panel's setting is what the add-on passes to the library
-    assert h["session_False"] is False and h["session_True"] is True, h
-
-
-def test_parting_switch_reaches_the_pipeline(pipeline):
-    h = pipeline["parting_switch"]
-    assert h["panel_default"] is True
-    # on: the views are searched (none counts, the sparse capture's masks being see-through: no skin)
-    assert h["True"] is not None and h["True"]["views"] == 0 and h["True"]["skin"] == 0, h
-    assert h["True"]["samples"] == 20000, h
-    # off: not searched at all
-    assert h["False"] is None, h
-    assert h["session_False"] is False and h["session_True"] is True, h
+def test_hull_and_parting_switches_reach_the_library(pipeline):
+    """The panel's switches become the keywords the add-on passes (what the keywords do in the library:
+    test_switches.py, once, without Blender)."""
+    for name in ("hull_switch", "parting_switch"):
+        h = pipeline[name]
+        assert h["panel_default"] is True, (name, h)
+        assert h["session_False"] is False and h["session_True"] is True, (name, h)
 
 
 def test_curl_settings_reach_the_library(pipeline):
