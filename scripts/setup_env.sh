@@ -37,27 +37,27 @@ fi
 command -v cargo >/dev/null 2>&1 || { echo "setup: error: cargo not found; install Rust (rustup) first" >&2; exit 1; }
 
 if [ ! -x .venv/bin/python ]; then
-  echo "setup: creating .venv with $PY"
+  echo "setup: creating .venv with $PY (at ${SECONDS} s)"
   "$PY" -m venv .venv
 fi
 stamp=.venv/.requirements.sha
 want=$(sha256sum requirements-dev.txt | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-  echo "setup: installing Python packages (requirements-dev.txt)"
+  echo "setup: installing Python packages (requirements-dev.txt) (at ${SECONDS} s)"
   .venv/bin/python -m pip install --quiet --upgrade pip
   .venv/bin/python -m pip install --quiet -r requirements-dev.txt
   echo "$want" > "$stamp"
 fi
 
 if [ "$TESTS" = 1 ]; then
-  echo "setup: building the hairrecon CLI with the Rust tests (release)"
+  echo "setup: building the hairrecon CLI with the Rust tests (release) (at ${SECONDS} s)"
   cargo build --release --quiet --workspace --exclude hairrecon-python --lib --bins --tests --examples
 else
-  echo "setup: building the hairrecon CLI (release)"
+  echo "setup: building the hairrecon CLI (release) (at ${SECONDS} s)"
   cargo build --release --quiet -p hairrecon-cli
 fi
 
-echo "setup: building the Python module (abi3 wheel, maturin, release) and installing it into .venv"
+echo "setup: building the Python module (abi3 wheel, maturin, release) and installing it into .venv (at ${SECONDS} s)"
 rm -rf target/wheels-hairrecon
 .venv/bin/maturin build --release --quiet -m rust/python/Cargo.toml -o target/wheels-hairrecon >/dev/null
 wheel=$(ls target/wheels-hairrecon/hairrecon-*.whl | head -n 1)
@@ -68,7 +68,7 @@ if [ "$BLENDER42" = 1 ]; then
   stamp42=.venv-blender42/.requirements.sha
   want42=$(sha256sum requirements-blender42.txt | cut -d' ' -f1)
   if [ ! -x .venv-blender42/bin/python ] || [ "$(cat "$stamp42" 2>/dev/null)" != "$want42" ]; then
-    echo "setup: installing bpy 4.2 into .venv-blender42 (requirements-blender42.txt)"
+    echo "setup: installing bpy 4.2 into .venv-blender42 (requirements-blender42.txt) (at ${SECONDS} s)"
     [ -x .venv-blender42/bin/python ] || "$PY" -m venv .venv-blender42
     .venv-blender42/bin/python -m pip install --quiet --upgrade pip
     .venv-blender42/bin/python -m pip install --quiet -r requirements-blender42.txt
@@ -79,3 +79,4 @@ if bpy.app.version[:2] != (4, 2):
     sys.exit(f"setup: error: .venv-blender42 holds bpy {bpy.app.version_string}, not 4.2; delete .venv-blender42")
 print("setup: ok (.venv-blender42: bpy", bpy.app.version_string + ")")'
 fi
+echo "setup: done (at ${SECONDS} s)"
