@@ -311,8 +311,8 @@ pub fn solve_flow(
         progress.update("init", 0.4 * k as f32 / dims[2] as f32, "distances");
         let r = k * slab..(k + 1) * slab;
         // Row by row along x, each query bounded by the last voxel's distance plus the step (a
-        // distance changes by at most the step between neighbours): the same closest points,
-        // found with far fewer of the BVH's nodes opened.
+        // distance changes by at most the step between neighbours): the same closest points, with
+        // fewer of the BVH's nodes opened.
         let step_bound = |last: Option<f32>| last.map_or(f32::INFINITY, |d| (d + params.voxel) * 1.001 + 1e-6);
         sd_outer[r.clone()]
             .par_chunks_mut(dims[0])
