@@ -18,6 +18,7 @@
 //! collision crates we looked at (parry3d 0.31) bring their own math types.
 
 use glam::{Vec2, Vec3};
+use rustc_hash::FxHashMap;
 use thiserror::Error;
 
 mod folds;
@@ -113,8 +114,8 @@ impl TriMesh {
     /// The distinct vertex positions (bit for bit) in first-seen order, and each vertex's index into
     /// them: a mesh split at UV seams or written per face becomes one surface.
     pub fn weld_positions(&self) -> (Vec<Vec3>, Vec<u32>) {
-        let mut index: std::collections::HashMap<[u32; 3], u32> =
-            std::collections::HashMap::with_capacity(self.vertices.len());
+        let mut index: FxHashMap<[u32; 3], u32> =
+            FxHashMap::with_capacity_and_hasher(self.vertices.len(), Default::default());
         let mut positions = Vec::new();
         let remap = self
             .vertices
@@ -188,7 +189,7 @@ pub struct Bvh {
     /// Angle-weighted pseudo-normals for vertices and for edges (keyed by sorted vertex pair), with
     /// the number of faces at each edge.
     vertex_pn: Vec<Vec3>,
-    edge_pn: std::collections::HashMap<(u32, u32), (Vec3, u32)>,
+    edge_pn: FxHashMap<(u32, u32), (Vec3, u32)>,
     /// Vertices on an edge with a single face (the rim of an open mesh).
     boundary_vertex: Vec<bool>,
     /// Each vertex's first vertex at the same position (the key of the two tables above).
@@ -257,13 +258,14 @@ impl Bvh {
         }
         // Vertices at the same position are one for the pseudo-normals and the rim (meshes from
         // Blender split vertices at UV seams, which would otherwise look like open edges).
-        let mut first: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+        let mut first: FxHashMap<[u32; 3], u32> =
+            FxHashMap::with_capacity_and_hasher(mesh.vertices.len(), Default::default());
         let weld: Vec<u32> = (0..mesh.vertices.len() as u32)
             .map(|i| *first.entry(mesh.vertices[i as usize].to_array().map(f32::to_bits)).or_insert(i))
             .collect();
         // Angle-weighted pseudo-normals.
         let mut vertex_pn = vec![Vec3::ZERO; mesh.vertices.len()];
-        let mut edge_pn = std::collections::HashMap::with_capacity(n * 3 / 2);
+        let mut edge_pn = FxHashMap::with_capacity_and_hasher(n * 3 / 2, Default::default());
         for i in 0..n {
             let t = mesh.triangles[i].map(|v| weld[v as usize]);
             let fnrm = mesh.face_normal(i);

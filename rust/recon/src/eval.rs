@@ -61,16 +61,27 @@ impl GroundTruth {
     }
 }
 
+/// The raw mesh with its BVH, built only when ground truth is scored (a capture without ground
+/// truth, or a run resumed at DR, need not build it).
+pub type RawMesh<'a> = dyn Fn() -> Result<&'a Bvh, ReconError> + 'a;
+
 /// Scores stage outputs against a capture's ground truth (loaded once, when first needed).
-#[derive(Debug)]
 pub struct Evaluator<'a> {
     capture: &'a Capture,
+    raw: &'a RawMesh<'a>,
     gt: OnceCell<Option<GroundTruth>>,
 }
 
+impl std::fmt::Debug for Evaluator<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Evaluator").field("capture", &self.capture.dir).field("gt", &self.gt).finish_non_exhaustive()
+    }
+}
+
 impl<'a> Evaluator<'a> {
-    pub fn new(capture: &'a Capture) -> Self {
-        Self { capture, gt: OnceCell::new() }
+    /// `raw` gives the capture's raw mesh; it is called once, the first time ground truth is loaded.
+    pub fn new(capture: &'a Capture, raw: &'a RawMesh<'a>) -> Self {
+        Self { capture, raw, gt: OnceCell::new() }
     }
 
     /// Whether the capture has ground-truth strands.
@@ -78,9 +89,13 @@ impl<'a> Evaluator<'a> {
         self.capture.gt_strands.is_some()
     }
 
-    fn gt(&self, raw: &Bvh) -> Result<Option<&GroundTruth>, ReconError> {
+    fn gt(&self) -> Result<Option<&GroundTruth>, ReconError> {
         if self.gt.get().is_none() {
-            let _ = self.gt.set(GroundTruth::load(self.capture, raw)?);
+            let loaded = match self.has_strands() {
+                true => GroundTruth::load(self.capture, (self.raw)()?)?,
+                false => None,
+            };
+            let _ = self.gt.set(loaded);
         }
         Ok(self.gt.get().and_then(Option::as_ref))
     }
@@ -101,30 +116,30 @@ impl<'a> Evaluator<'a> {
     }
 
     /// The oriented 3D points.
-    pub fn points(&self, raw: &Bvh, p: &OrientedPoints) -> Result<Option<PointsScore>, ReconError> {
-        Ok(self.gt(raw)?.map(|g| {
+    pub fn points(&self, p: &OrientedPoints) -> Result<Option<PointsScore>, ReconError> {
+        Ok(self.gt()?.map(|g| {
             score_points(&p.positions, &p.directions, &g.index, &g.surface, MATCH_DIST, MATCH_ANGLE_DEG.to_radians())
         }))
     }
 
     /// The directed points.
-    pub fn directions(&self, raw: &Bvh, p: &OrientedPoints) -> Result<Option<DirectionScore>, ReconError> {
+    pub fn directions(&self, p: &OrientedPoints) -> Result<Option<DirectionScore>, ReconError> {
         Ok(self
-            .gt(raw)?
+            .gt()?
             .map(|g| score_directions(&p.positions, &p.directions, &g.index, MATCH_DIST, MATCH_ANGLE_DEG.to_radians())))
     }
 
     /// Ringlet axes (where the cameras saw the hair) of the curl `c`.
-    pub fn axes(&self, raw: &Bvh, axes: &OrientedPoints, c: &Curl) -> Result<Option<AxisScore>, ReconError> {
-        Ok(self.gt(raw)?.map(|g| {
+    pub fn axes(&self, axes: &OrientedPoints, c: &Curl) -> Result<Option<AxisScore>, ReconError> {
+        Ok(self.gt()?.map(|g| {
             let gt_ax = gt_axes(&g.strands, c.period / c.pitch_angle().cos(), 0.001);
             score_axes(&axes.positions, &axes.directions, &gt_ax, MATCH_DIST)
         }))
     }
 
     /// The strand metric (`None` without ground truth or when a set is empty).
-    pub fn strands(&self, raw: &Bvh, set: &StrandSet) -> Result<Option<MetricReport>, ReconError> {
-        Ok(self.gt(raw)?.and_then(|g| evaluate(set, &g.strands, &MetricOptions::default()).ok()))
+    pub fn strands(&self, set: &StrandSet) -> Result<Option<MetricReport>, ReconError> {
+        Ok(self.gt()?.and_then(|g| evaluate(set, &g.strands, &MetricOptions::default()).ok()))
     }
 }
 
@@ -283,5 +298,35 @@ mod tests {
         let d = score_directions(&pos, &dir, &gt, 0.002, 20f32.to_radians());
         assert_eq!(d.judged, 1);
         assert_eq!(d.agreement, 0.0);
+    }
+
+    #[test]
+    fn the_raw_mesh_is_asked_for_only_with_ground_truth() {
+        let cap = Capture {
+            dir: "capture".into(),
+            units: hairrecon_core::capture::Units::Metres,
+            frame: hairrecon_core::capture::Frame::Canonical,
+            views: Vec::new(),
+            raw_mesh: "raw_mesh.ply".into(),
+            head_mesh: None,
+            scalp_mesh: None,
+            gt_strands: None,
+            to_canonical: None,
+            file_frame: None,
+        };
+        let asked = std::cell::Cell::new(0);
+        let raw = || -> Result<&Bvh, ReconError> {
+            asked.set(asked.get() + 1);
+            Err(ReconError::Cancelled(crate::progress::Cancelled))
+        };
+        let s = StrandSet::new(vec![Vec3::ZERO, Vec3::new(0.0, 0.0, -0.1)], vec![2]).unwrap();
+        let ev = Evaluator::new(&cap, &raw);
+        assert!(ev.strands(&s).unwrap().is_none());
+        assert!(ev.strands(&s).unwrap().is_none());
+        assert_eq!(asked.get(), 0, "no ground truth: nothing to build the raw mesh for");
+        let with_gt = Capture { gt_strands: Some("gt.hair".into()), ..cap.clone() };
+        let ev = Evaluator::new(&with_gt, &raw);
+        assert!(matches!(ev.strands(&s), Err(ReconError::Cancelled(_))), "the raw mesh's error is the scoring's");
+        assert_eq!(asked.get(), 1);
     }
 }

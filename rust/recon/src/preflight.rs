@@ -6,10 +6,10 @@
 //! The bounds are wide: a head with its hair spans about 0.3 to 1 m; anything from 0.1 to 5 m
 //! passes. A photogrammetry mesh of a head has thousands of triangles; at least 100 are needed.
 
+use hairrecon_core::capture::Capture;
 use hairrecon_core::mesh::TriMesh;
 
 use crate::error::ReconError;
-use crate::stages::Context;
 
 /// The fewest triangles a raw mesh may have.
 pub const MIN_RAW_TRIANGLES: usize = 100;
@@ -28,9 +28,9 @@ fn diagonal(m: &TriMesh) -> f32 {
 }
 
 /// Checks the raw mesh, the scalp (when the capture has one) and the cameras (module docs).
-pub fn check(ctx: &Context<'_>) -> Result<(), ReconError> {
-    let cap = ctx.capture;
-    let raw = ctx.raw()?.mesh();
+/// Reads the meshes without building their BVHs (the stages build the one they need).
+pub fn check(cap: &Capture) -> Result<(), ReconError> {
+    let raw = &cap.read_mesh(&cap.raw_mesh)?;
     let name = cap.raw_mesh.display().to_string();
     if raw.triangles.len() < MIN_RAW_TRIANGLES {
         return Err(implausible(

@@ -67,7 +67,7 @@ pub fn reconstruct(
     // The capture as given is checked before anything is written, in the canonical frame; an
     // imported capture that no head fit has placed yet is checked once stage `head` has.
     if let Some(given) = capture.in_canonical_frame().map_err(ReconError::Capture)? {
-        crate::preflight::check(&Context::new(&given, out_dir, progress))?;
+        crate::preflight::check(&given)?;
         // Cancelled while the meshes were checked: the earlier run's files are still whole.
         progress.check()?;
     }
@@ -186,7 +186,7 @@ fn run_all(
     };
     if head.is_some() {
         // What the fit made, checked as a user's meshes are.
-        crate::preflight::check(&Context::new(&placed, out_dir, progress))?;
+        crate::preflight::check(&placed)?;
     }
     if last == Stage::Head {
         return Ok(());
@@ -227,7 +227,8 @@ fn run_stages(
     from: Stage,
     last: Stage,
 ) -> Result<(), ReconError> {
-    let eval = Evaluator::new(ctx.capture);
+    let raw = || ctx.raw();
+    let eval = Evaluator::new(ctx.capture, &raw);
     let runs = |s: Stage| from <= s && s <= last;
     let t = StageClock::start();
     let maps = if runs(Stage::Orient2d) {
@@ -248,7 +249,7 @@ fn run_stages(
         let o = stages::orient3d::run(ctx, cfg, &maps)?;
         o.save(ctx)?;
         finished(ctx, report, Stage::Orient3d, t, &())?;
-        report.scores.orient3d = eval.points(ctx.raw()?, &o.points)?;
+        report.scores.orient3d = eval.points(&o.points)?;
         Some(o.points)
     } else if runs(Stage::Direction) {
         Some(Orient3dOut::load(ctx, from)?.points)
@@ -278,7 +279,7 @@ fn run_stages(
             let o = stages::direction::run(ctx, cfg, &points, &scalp)?;
             o.save(ctx)?;
             finished(ctx, report, Stage::Direction, t, &o.stats)?;
-            report.scores.direction = eval.directions(ctx.raw()?, &o.directed)?;
+            report.scores.direction = eval.directions(&o.directed)?;
             o.directed
         }
         None if runs(Stage::Init) => DirectionOut::load(ctx, from)?.directed,
@@ -295,11 +296,11 @@ fn run_stages(
         finished(ctx, report, Stage::Init, t, &o.stats)?;
         report.warnings.extend(o.stats.hull_warning.clone());
         if let (Some(axes), Some(c)) = (&o.seen_axes, o.info.curl) {
-            report.scores.axes = eval.axes(ctx.raw()?, axes, &c)?;
+            report.scores.axes = eval.axes(axes, &c)?;
         }
         ctx.progress.update("metrics", 0.0, "scoring strands");
-        report.scores.init_guides = eval.strands(ctx.raw()?, &o.guides)?;
-        report.scores.init_strands = eval.strands(ctx.raw()?, &o.children)?;
+        report.scores.init_guides = eval.strands(&o.guides)?;
+        report.scores.init_strands = eval.strands(&o.children)?;
         o
     } else {
         InitOut::load(ctx, from)?
@@ -319,8 +320,8 @@ fn run_stages(
     o.save(ctx)?;
     finished(ctx, report, Stage::Dr, t, &o.stats)?;
     ctx.progress.update("metrics", 0.5, "scoring strands");
-    report.scores.dr_guides = eval.strands(ctx.raw()?, &o.guides)?;
-    report.scores.dr_strands = eval.strands(ctx.raw()?, &o.children)?;
+    report.scores.dr_guides = eval.strands(&o.guides)?;
+    report.scores.dr_strands = eval.strands(&o.children)?;
     ctx.progress.update("dr", 1.0, "");
     Ok(())
 }

@@ -30,7 +30,7 @@ pub(super) const VOTE_RADIUS_EDGES: f32 = 4.0;
 pub(super) fn doubtful_triangles(
     triangles: &[[u32; 3]],
     weld: &[u32],
-    edge_pn: &std::collections::HashMap<(u32, u32), (Vec3, u32)>,
+    edge_pn: &rustc_hash::FxHashMap<(u32, u32), (Vec3, u32)>,
 ) -> Vec<bool> {
     let mut folded_vertex = vec![false; weld.len()];
     let mut any = false;
