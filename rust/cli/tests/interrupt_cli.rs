@@ -4,8 +4,7 @@
 //! folder then holds exactly what its `report.json` lists (the stages that finished, complete, for
 //! `--from`), a result only when the run completed, and no temporary file.
 
-#[path = "../../recon/tests/common/mod.rs"]
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};

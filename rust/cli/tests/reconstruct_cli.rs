@@ -3,8 +3,7 @@
 //! give one clear error, `--no-dr` writes the same strands as `--stop-after init`, and a DR run
 //! keeps those as `init_strands.hair` beside its own `strands.hair`, `loss.csv` and `loss.png`.
 
-#[path = "../../recon/tests/common/mod.rs"]
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

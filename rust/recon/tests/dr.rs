@@ -2,8 +2,8 @@
 //! rendered by the raster crate into 8 views (coverage and orientation, hidden where the head
 //! occludes); the optimization starts from the same strands cut to 80% of their length (same point
 //! count) and bent away smoothly (up to 4 mm at the tip), and must bring them back. Every number is
-//! seeded. Measured (this file's settings, `cargo test --release -p hairrecon-recon --test dr --
-//! --nocapture`, at commit 584c3fd): start F1 70.4 (directed, 2 mm/20°), tip error 20.5 mm; full
+//! seeded. Measured (this file's settings, `cargo test --release -p hairrecon-recon --test integration
+//! dr:: -- --skip pipeline_dr --nocapture`, at commit 584c3fd): start F1 70.4 (directed, 2 mm/20°), tip error 20.5 mm; full
 //! DR F1 89.8, tip error 10.8 mm; w/o reparam F1 81.6, 11.7 mm (with the DR defaults before commit
 //! 6a05744 91.4 / 10.0 mm and 85.9 / 10.9 mm; w/o N, not run here to keep the test short, measured
 //! F1 88.3, 10.6 mm then). The floors are these less a margin.

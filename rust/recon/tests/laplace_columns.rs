@@ -2,7 +2,7 @@
 //! as the scalp, and hair seen 3.5 cm above it (`LaplaceParams::column_angle_deg` and
 //! `LaplaceParams::scalp_lift`).
 
-mod common;
+use crate::common;
 
 use glam::Vec3;
 use hairrecon_core::Bvh;

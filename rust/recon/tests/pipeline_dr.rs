@@ -8,7 +8,7 @@
 //! 0.2 mm strands, DR lowered F1 from 75.1 to 70.6 (the silhouette loss spreads the strands to fill
 //! the dilated mask).
 
-mod common;
+use crate::common;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 

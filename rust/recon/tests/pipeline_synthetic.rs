@@ -1,7 +1,8 @@
 //! The whole pipeline on a synthetic capture (see `common/mod.rs`): each stage's metric must stay
 //! above a floor set from measured runs, and a cancelled run must write no strands. (Resuming and
-//! replaying are in `resume.rs`: a test binary of its own, so that their runs do not share this
-//! process's peak memory, which `every_stage_meets_its_floor` reads.)
+//! replaying are in `resume.rs`.) This file is a test binary of its own, outside
+//! `integration.rs`, so that no other test's runs share this process's peak memory, which
+//! `every_stage_meets_its_floor` reads.
 
 mod common;
 

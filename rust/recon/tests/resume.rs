@@ -4,7 +4,7 @@
 //! fails at stage `head`; views without masks get them from stage `masks`. A run owns its folder: what an earlier run left there is cleared, a cancelled run
 //! leaves the stages it finished and nothing else, and a folder that is not a run's is refused.
 
-mod common;
+use crate::common;
 
 use hairrecon_core::capture::Capture;
 use std::path::Path;

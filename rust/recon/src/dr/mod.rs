@@ -19,7 +19,8 @@
 //! - [`report`]: the loss curves as `loss.csv` and `loss.png`.
 //!
 //! Measured on the synthetic scene of `tests/dr.rs` (240 strands on a 9 cm sphere, 8 views of
-//! 160 px; `cargo test --release -p hairrecon-recon --test dr -- --nocapture`): with the defaults,
+//! 160 px; `cargo test --release -p hairrecon-recon --test integration dr:: -- --skip pipeline_dr
+//! --nocapture`): with the defaults,
 //! directed F1 at 2 mm/20° 70.4 → 89.8 and mean tip error 20.5 → 10.8 mm (without the
 //! reparameterization 81.6 / 11.7 mm). The figures on the paper presets, by commit, are in
 //! `docs/reconstruction.md`; the studies behind the defaults in

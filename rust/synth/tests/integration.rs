@@ -1,0 +1,5 @@
+//! The integration tests of this crate, one module per file beside this one, built as one test
+//! binary (one link instead of one per file).
+
+mod fixtures;
+mod generator;
