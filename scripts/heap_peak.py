@@ -24,8 +24,9 @@ from pathlib import Path
 
 # Frames that say nothing of who holds the memory.
 SKIP = set(
-    "alloc alloc_impl alloc_impl_runtime allocate allocate_in allocate_zeroed alloc_zeroed finish_grow "
-    "grow grow_impl grow_impl_runtime grow_amortized grow_one do_reserve_and_handle reserve reserve_for_push "
+    "alloc alloc_impl alloc_impl_runtime allocate allocate_in allocate_zeroed alloc_zeroed realloc finish_grow "
+    "grow grow_impl grow_impl_runtime grow_amortized grow_one shrink shrink_to shrink_to_fit into_boxed_slice "
+    "do_reserve_and_handle reserve reserve_for_push "
     "with_capacity with_capacity_in with_capacity_zeroed_in try_allocate_in from_elem extend_with resize "
     "push clone clone_from from_iter extend spec_extend extend_trusted extend_from_slice to_vec collect "
     "new_uninitialized fallible_with_capacity call_once call_mut map next execute run main_loop "
