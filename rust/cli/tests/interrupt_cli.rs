@@ -4,7 +4,8 @@
 //! folder then holds exactly what its `report.json` lists (the stages that finished, complete, for
 //! `--from`), a result only when the run completed, and no temporary file.
 
-use crate::common;
+#[path = "../../recon/tests/common/mod.rs"]
+mod common;
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
