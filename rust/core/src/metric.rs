@@ -9,18 +9,14 @@
 //! match) and *undirected* (180°-tolerant, compares |cos|). Default thresholds: 1 mm/10°, 2 mm/20°,
 //! 3 mm/30°.
 //!
-//! Matching uses a kd-tree (kiddo's `ImmutableKdTree`) over each set: one nearest-neighbour query
-//! settles most points, and a radius search is made only when the nearest point fails the angle test
-//! (see [`OrientedPoints::match_counts`]). That search runs in a grid whose blocks hold their points
-//! sorted by tangent into the cells of a cube map of the sphere: a cell whose every direction lies
-//! farther than the angle threshold from the query's tangent (and, undirected, from its reverse) is
-//! skipped. Along strands, the neighbours of the previous match are tried first; points are processed
-//! in parallel with rayon.
+//! Matching searches a grid over each set (see [`OrientedPoints::match_counts`]), tightest
+//! threshold first: its blocks hold their points sorted by tangent into the cells of a cube map of
+//! the sphere, and a cell whose every direction lies farther than the angle threshold from the
+//! query's tangent (and, undirected, from its reverse) is skipped. Along strands, the neighbours of
+//! the previous match are tried first; points are processed in parallel with rayon.
 
 use glam::Vec3;
-use kiddo::SquaredEuclidean;
 
-use crate::spatial::PointIndex;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -159,6 +155,8 @@ struct SearchGrid {
     runs: Vec<Run>,
     pts: Vec<Vec3>,
     tans: Vec<Vec3>,
+    /// Each sorted point's index in the set.
+    idx: Vec<u32>,
 }
 
 impl SearchGrid {
@@ -181,6 +179,7 @@ impl SearchGrid {
             runs: Vec::new(),
             pts: Vec::new(),
             tans: Vec::new(),
+            idx: Vec::new(),
         };
         if !(lo.is_finite() && hi.is_finite() && block_min > 0.0) {
             return empty();
@@ -218,7 +217,8 @@ impl SearchGrid {
         }
         let pts = keys.iter().map(|&(_, k)| points[k as usize]).collect();
         let tans = keys.iter().map(|&(_, k)| tangents[k as usize]).collect();
-        Self { centres, radii, origin: lo, block, dims, first_run, runs, pts, tans }
+        let idx = keys.iter().map(|&(_, k)| k).collect();
+        Self { centres, radii, origin: lo, block, dims, first_run, runs, pts, tans, idx }
     }
 
     /// Per threshold and direction cell, cos(θ + cell radius): below it the cell holds no match.
@@ -232,8 +232,9 @@ impl SearchGrid {
 
     /// Whether some point within distance² `d2` of `p` has a tangent with cosine above `cos` to `t`
     /// (looked for when `want.0`) or above `cos` in absolute value (when `want.1`); returns the
-    /// `(directed, undirected)` findings. `cb[b]` is the cosine between `t` and the centre of cell
-    /// `b`, `cos_lim[b]` cos(θ + radius of cell b).
+    /// `(directed, undirected)` findings and the set's index of a directed match (`u32::MAX` when
+    /// none was found). `cb[b]` is the cosine between `t` and the centre of cell `b`, `cos_lim[b]`
+    /// cos(θ + radius of cell b).
     #[allow(clippy::too_many_arguments)]
     fn search(
         &self,
@@ -244,9 +245,9 @@ impl SearchGrid {
         cb: &[f32; N_BINS],
         cos_lim: &[f32; N_BINS],
         want: (bool, bool),
-    ) -> (bool, bool) {
+    ) -> (bool, bool, u32) {
         if self.runs.is_empty() {
-            return (false, false);
+            return (false, false, u32::MAX);
         }
         // The cells that may hold a directed match, and those that may hold an undirected one.
         let (mut same, mut either) = (0u128, 0u128);
@@ -256,12 +257,13 @@ impl SearchGrid {
             either |= ((s || o) as u128) << b;
         }
         let (mut dir, mut und) = (!want.0, !want.1);
+        let mut found = u32::MAX;
         let d = d2.sqrt();
         let lo = ((p - Vec3::splat(d) - self.origin) / self.block).floor();
         let hi = ((p + Vec3::splat(d) - self.origin) / self.block).floor();
         let top = Vec3::new(self.dims[0] as f32, self.dims[1] as f32, self.dims[2] as f32) - 1.0;
         if hi.cmplt(Vec3::ZERO).any() || lo.cmpgt(top).any() || !(lo.is_finite() && hi.is_finite()) {
-            return (false, false);
+            return (false, false, u32::MAX);
         }
         let (lo, hi) = (lo.max(Vec3::ZERO), hi.min(top));
         for i in lo.x as usize..=hi.x as usize {
@@ -274,62 +276,67 @@ impl SearchGrid {
                         continue;
                     }
                     let (a, z) = (run.start as usize, run.end as usize);
-                    for (q, s) in self.pts[a..z].iter().zip(&self.tans[a..z]) {
+                    for (k, (q, s)) in self.pts[a..z].iter().zip(&self.tans[a..z]).enumerate() {
                         if q.distance_squared(p) <= d2 {
                             let c = s.dot(t);
-                            dir |= c > cos;
+                            if !dir && c > cos {
+                                dir = true;
+                                found = self.idx[a + k];
+                            }
                             und |= c.abs() > cos;
                         }
                     }
                     if dir && und {
-                        return want;
+                        return (want.0, want.1, found);
                     }
                 }
             }
         }
-        (dir && want.0, und && want.1)
+        (dir && want.0, und && want.1, found)
     }
 }
 
-/// Points with unit tangents and a kd-tree over the points ([`PointIndex`]): one side of the comparison.
+/// Points with unit tangents: one side of the comparison.
 #[derive(Debug)]
 pub struct OrientedPoints {
-    index: PointIndex,
-}
-
-impl std::ops::Deref for OrientedPoints {
-    type Target = PointIndex;
-    fn deref(&self) -> &PointIndex {
-        &self.index
-    }
+    pub points: Vec<Vec3>,
+    pub tangents: Vec<Vec3>,
 }
 
 impl OrientedPoints {
-    /// Builds the kd-tree over oriented points (tangents should be unit vectors; zero never matches).
+    /// Oriented points (tangents should be unit vectors; zero never matches).
     pub fn new(points: Vec<Vec3>, tangents: Vec<Vec3>) -> Self {
         assert_eq!(points.len(), tangents.len(), "one tangent per point");
-        Self { index: PointIndex::new(points, tangents) }
+        Self { points, tangents }
     }
 
-    /// Resamples strands by arc length with `step` ([`PointIndex::from_strands`]) and builds the tree.
+    /// Strand points every `step` metres of arc, root and tip included
+    /// ([`StrandSet::resample_by_arclength`]), with root→tip unit tangents.
     pub fn from_strands(strands: &StrandSet, step: f32) -> Result<Self, StrandError> {
-        Ok(Self { index: PointIndex::from_strands(strands, step)? })
+        let r = strands.resample_by_arclength(step)?;
+        let tangents = r.tangents();
+        Ok(Self::new(r.into_parts().0, tangents))
+    }
+
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
     }
 
     /// For a query point and tangent, a bit mask: bit `i` is set when some point of this set
-    /// matches under threshold `i` in directed mode, bit `MAX_THRESHOLDS + i` in undirected mode;
-    /// and the index of the nearest point (`u32::MAX` when none was searched). `thresholds` must be
-    /// sorted by distance and hold at most [`MAX_THRESHOLDS`] entries; `cos` holds the cosines of
-    /// their angles. With `monotone` (thresholds growing in both distance and angle), a match at
-    /// one threshold is carried to the wider ones without a search.
+    /// matches under threshold `i` in directed mode, bit `MAX_THRESHOLDS + i` in undirected mode.
+    /// `found[i]` is set to a point that matches threshold `i` in directed mode (`u32::MAX` when
+    /// the search there found none or did not look). `thresholds` must be sorted by distance and
+    /// hold at most [`MAX_THRESHOLDS`] entries; `cos` holds the cosines of their angles. With
+    /// `monotone` (thresholds growing in both distance and angle), a match at one threshold is
+    /// carried to the wider ones without a search.
     ///
-    /// Exact, and cheap in the common case: one nearest-neighbour query settles every threshold
-    /// closer than the nearest point (unmatched) and, when the nearest point passes the angle test,
-    /// every other one (matched). Only a threshold the nearest point fails on angle needs a radius
-    /// search in `grid`, which scans only the direction cells that can pass.
-    #[allow(clippy::too_many_arguments)]
-    fn match_mask_nearest(
-        &self,
+    /// Each threshold not yet settled is one search of `grid` within its distance, which scans only
+    /// the direction cells that can pass its angle.
+    fn match_mask(
         p: Vec3,
         t: Vec3,
         thresholds: &[Threshold],
@@ -337,86 +344,94 @@ impl OrientedPoints {
         grid: &SearchGrid,
         cos_lim: &[[f32; N_BINS]],
         monotone: bool,
-    ) -> (u32, u32) {
-        let n = thresholds.len();
-        if self.points.is_empty() || t == Vec3::ZERO || n == 0 {
-            return (0, u32::MAX);
+        found: &mut [u32; MAX_THRESHOLDS],
+    ) -> u32 {
+        found.fill(u32::MAX);
+        if t == Vec3::ZERO {
+            return 0;
         }
-        let q = p.to_array();
-        // Bounded by the widest threshold: a query far from every point (a strand the other set
-        // lacks) then prunes the tree at once instead of searching it for a far nearest point.
-        let dmax = thresholds.iter().fold(0.0f32, |m, t| m.max(t.dist));
-        let one = std::num::NonZeroUsize::MIN;
-        let Some(nearest) = self.tree.nearest_n_within::<SquaredEuclidean>(&q, dmax * dmax, one, true).pop() else {
-            return (0, u32::MAX);
-        };
-        let d0 = nearest.distance;
-        let c0 = self.tangents[nearest.item as usize].dot(t);
+        let cb: [f32; N_BINS] = std::array::from_fn(|b| grid.centres[b].dot(t));
         let mut mask = 0u32;
         let (mut prev_dir, mut prev_und) = (false, false);
-        let mut cb: Option<[f32; N_BINS]> = None;
-        for i in 0..n {
-            let di2 = thresholds[i].dist * thresholds[i].dist;
-            if d0 > di2 {
-                continue; // nothing within d_i at all
-            }
-            let mut dir = c0 > cos[i] || (monotone && prev_dir);
-            let mut und = c0.abs() > cos[i] || (monotone && prev_und);
+        for (i, th) in thresholds.iter().enumerate() {
+            let mut dir = monotone && prev_dir;
+            let mut und = monotone && prev_und;
             if !(dir && und) {
-                // The nearest point fails the angle test: look at every point within d_i whose
-                // direction cell can pass it.
-                let cb = cb.get_or_insert_with(|| std::array::from_fn(|b| grid.centres[b].dot(t)));
-                let (d, u) = grid.search(p, t, di2, cos[i], cb, &cos_lim[i], (!dir, !und));
+                let (d, u, f) = grid.search(p, t, th.dist * th.dist, cos[i], &cb, &cos_lim[i], (!dir, !und));
                 dir |= d;
                 und |= u;
+                found[i] = f;
             }
             (prev_dir, prev_und) = (dir, und);
             mask |= (dir as u32) << i | (und as u32) << (MAX_THRESHOLDS + i);
         }
-        (mask, nearest.item as u32)
+        mask
     }
 
     /// Counts, per threshold, the points of `query` matched by this set: `(directed, undirected)`.
     ///
-    /// Queries run in parallel over chunks in the query's own order (along its strands). Each query
-    /// first tries the points next to the previous query's nearest point: when thresholds grow in
-    /// both distance and angle, one of them matching the tightest threshold proves a match at every
-    /// threshold, in both modes, without a tree search. Along well-reconstructed strands that settles
-    /// most points; the result is exactly that of a search of every point.
+    /// Queries run in parallel over chunks in the query's own order (along its strands). When the
+    /// thresholds grow in both distance and angle, each query first tries, per threshold from the
+    /// tightest, the points next to the one that matched the previous query there: a match at one
+    /// threshold proves a match at it and every wider one, in both modes, so only the tighter
+    /// thresholds are searched in the grid. Along strands that follow the other set's at some
+    /// distance that settles most points; the result is exactly that of a search of every point.
     pub fn match_counts(&self, query: &OrientedPoints, thresholds: &[Threshold]) -> (Vec<u64>, Vec<u64>) {
         let cos: Vec<f32> = thresholds.iter().map(|t| t.angle_deg.to_radians().cos()).collect();
         let n = thresholds.len();
-        let all = ((1u32 << n) - 1) | (((1u32 << n) - 1) << MAX_THRESHOLDS);
         let monotone = thresholds.windows(2).all(|w| w[0].dist <= w[1].dist && w[0].angle_deg <= w[1].angle_deg);
-        let (d1, c1) = (thresholds.first().map_or(0.0, |t| t.dist), cos.first().copied().unwrap_or(1.0));
         let last = self.points.len() as i64 - 1;
         // Blocks the size of the tightest threshold: a search at distance d scans about
         // (2d / block + 1)³ blocks, but only the runs of the direction cells that can pass.
-        let grid = SearchGrid::new(&self.points, &self.tangents, d1);
+        let grid = SearchGrid::new(&self.points, &self.tangents, thresholds.first().map_or(0.0, |t| t.dist));
         let lim = grid.cell_limits(thresholds);
+        // Whether point `c` of this set matches `(p, t)` under threshold `i` in directed mode.
+        let matches = |c: usize, p: Vec3, t: Vec3, i: usize| {
+            self.points[c].distance_squared(p) <= thresholds[i].dist * thresholds[i].dist
+                && self.tangents[c].dot(t) > cos[i]
+        };
         let idx: Vec<u32> = (0..query.points.len() as u32).collect();
         idx.par_chunks(4096)
             .fold(
                 || (vec![0u64; n], vec![0u64; n]),
                 |(mut dir, mut und), chunk| {
-                    let mut hint = u32::MAX;
+                    let mut hints = [u32::MAX; MAX_THRESHOLDS];
+                    let mut found = [u32::MAX; MAX_THRESHOLDS];
                     for &k in chunk {
                         let (p, t) = (query.points[k as usize], query.tangents[k as usize]);
-                        let mut m = 0;
-                        if monotone && hint != u32::MAX && t != Vec3::ZERO {
-                            for c in [hint as i64 + 1, hint as i64, hint as i64 + 2] {
-                                let c = c.clamp(0, last) as usize;
-                                if self.points[c].distance_squared(p) <= d1 * d1 && self.tangents[c].dot(t) > c1 {
-                                    m = all;
-                                    hint = c as u32;
-                                    break;
+                        // The tightest threshold a hint settles (n: none), and the point that did.
+                        let (mut from, mut by) = (n, u32::MAX);
+                        if monotone && t != Vec3::ZERO {
+                            'hints: for i in 0..n {
+                                let h = hints[i];
+                                if h == u32::MAX {
+                                    continue;
+                                }
+                                for c in [h as i64 + 1, h as i64, h as i64 + 2] {
+                                    let c = c.clamp(0, last) as usize;
+                                    if matches(c, p, t, i) {
+                                        (from, by) = (i, c as u32);
+                                        break 'hints;
+                                    }
                                 }
                             }
                         }
-                        if m == 0 {
-                            let (mm, nearest) = self.match_mask_nearest(p, t, thresholds, &cos, &grid, &lim, monotone);
-                            m = mm;
-                            hint = nearest;
+                        let wide = ((1u32 << n) - 1) & !((1u32 << from) - 1);
+                        let mut m = wide | wide << MAX_THRESHOLDS;
+                        if from > 0 {
+                            m |= Self::match_mask(p, t, &thresholds[..from], &cos, &grid, &lim, monotone, &mut found);
+                        }
+                        if monotone {
+                            // Each threshold's hint: a point that matched it, or the tighter one's.
+                            let mut cur = u32::MAX;
+                            for i in 0..n {
+                                if i < from && found[i] != u32::MAX {
+                                    cur = found[i];
+                                } else if i == from {
+                                    cur = by;
+                                }
+                                hints[i] = if (m >> i) & 1 == 1 { cur } else { u32::MAX };
+                            }
                         }
                         for i in 0..n {
                             dir[i] += ((m >> i) & 1) as u64;
