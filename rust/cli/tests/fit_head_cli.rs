@@ -6,6 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::common::Scratch;
+
 use glam::{DMat3, DVec3};
 use hairrecon_core::capture::{CaptureSpec, ViewSpec};
 use hairrecon_core::formats::{read_mesh, write_mesh};
@@ -19,11 +21,8 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures")
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("hairrecon-fit-head-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmp(name: &str) -> Scratch {
+    Scratch::new(&format!("fit-head-cli-{name}"))
 }
 
 /// The capture's frame: canonical → capture.

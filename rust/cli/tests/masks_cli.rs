@@ -9,6 +9,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::common::Scratch;
+
 use glam::{Vec2, Vec3};
 use hairrecon_core::capture::{CaptureSpec, ViewSpec};
 use hairrecon_core::formats::ply::read_ply;
@@ -24,11 +26,8 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures")
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("hairrecon-masks-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmp(name: &str) -> Scratch {
+    Scratch::new(&format!("masks-cli-{name}"))
 }
 
 /// A value in [0, 1) from integer coordinates (a hash, the texture's noise).

@@ -380,4 +380,5 @@ fn a_photo_claiming_too_many_pixels_is_refused_before_decoding() {
         }
         other => panic!("expected TooLarge, got {other:?}"),
     }
+    std::fs::remove_dir_all(dir).ok();
 }

@@ -14,6 +14,43 @@ use hairrecon_core::formats::{write_mesh, write_strands};
 use hairrecon_core::{Camera, StrandSet, TriMesh};
 use hairrecon_recon::orient2d::OrientationMap;
 
+/// A scratch folder under the system's temporary directory, `hairrecon-NAME-PID`, made empty; removed
+/// when the test that holds it passes, kept (and named on stderr) when it fails, to look at.
+#[derive(Debug)]
+pub struct Scratch(PathBuf);
+
+impl Scratch {
+    pub fn new(name: &str) -> Self {
+        let d = std::env::temp_dir().join(format!("hairrecon-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        Self(d)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = PathBuf;
+    fn deref(&self) -> &PathBuf {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("the failed test's files are kept in {}", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
 pub const HEAD_R: f32 = 0.09;
 /// The raw mesh: the outer hair surface over the hair, the head below it.
 pub const RAW_OVER_HAIR: f32 = 0.0085;
