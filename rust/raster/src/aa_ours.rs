@@ -40,8 +40,9 @@ fn separating_edge(prims: &[Prim], cs: Vec2, cn: Vec2, ids: u32, idn: u32) -> Op
     if idn != 0 {
         let p = &prims[idn as usize - 1];
         let mut best: Option<(f32, u32)> = None;
+        let edges = p.edges();
         for k in 0..4 {
-            if let Some((e0, e1)) = p.edge(k) {
+            if let Some((e0, e1)) = edges[k] {
                 if let Some(t) = crossing(cs, cn, e0, e1) {
                     if !matches!(best, Some((bt, _)) if t <= bt) {
                         best = Some((t, k as u32));
@@ -56,8 +57,9 @@ fn separating_edge(prims: &[Prim], cs: Vec2, cn: Vec2, ids: u32, idn: u32) -> Op
     if ids != 0 {
         let p = &prims[ids as usize - 1];
         let mut best: Option<(f32, u32)> = None;
+        let edges = p.edges();
         for k in 0..4 {
-            if let Some((e0, e1)) = p.edge(k) {
+            if let Some((e0, e1)) = edges[k] {
                 if let Some(t) = crossing(cs, cn, e0, e1) {
                     if !matches!(best, Some((bt, _)) if t >= bt) {
                         best = Some((t, k as u32));

@@ -156,6 +156,20 @@ impl Prim {
         }
     }
 
+    /// The four edges, see [`Prim::edge`] (each corner computed once).
+    #[inline]
+    pub fn edges(&self) -> [Option<(Vec2, Vec2)>; 4] {
+        let c = self.corners();
+        std::array::from_fn(|k| {
+            let (e0, e1) = (c[k], c[(k + 1) & 3]);
+            if (e1 - e0).length_squared() < 1e-12 {
+                None
+            } else {
+                Some((e0, e1))
+            }
+        })
+    }
+
     fn build(a: Vec2, b: Vec2, hw0: f32, hw1: f32, z0: f32, z1: f32) -> Self {
         let d = b - a;
         let len = d.length();
@@ -587,13 +601,30 @@ pub(crate) fn crossing(p0: Vec2, p1: Vec2, e0: Vec2, e1: Vec2) -> Option<f32> {
         return None;
     }
     let w = e0 - p0;
-    let t = w.perp_dot(s) / den;
-    let u = w.perp_dot(r) / den;
+    let (nt, nu) = (w.perp_dot(s), w.perp_dot(r));
+    // Most segments miss most edges: settle those without the two divisions, where the quotients
+    // below would surely fall outside [0, 1] too (so the result is the same).
+    if surely_outside_unit(nt, den) || surely_outside_unit(nu, den) {
+        return None;
+    }
+    let t = nt / den;
+    let u = nu / den;
     if (0.0..=1.0).contains(&t) && (0.0..=1.0).contains(&u) {
         Some(t)
     } else {
         None
     }
+}
+
+/// Whether the f32 quotient `num / den` (`|den| ≥ 1e-12`) surely lies outside `[0, 1]`: its magnitude
+/// exceeds 1 by more than rounding, or its sign is negative and it is too large to round to −0.
+/// `false` leaves the question to the division (NaN, zeros, and quotients near 0 or 1 go there).
+#[inline]
+fn surely_outside_unit(num: f32, den: f32) -> bool {
+    let (a, d) = (num.abs(), den.abs());
+    // a ≥ d·(1 + 2⁻²⁰) (the product rounded by at most 2⁻²⁴): the quotient rounds above 1 in magnitude.
+    // Signs differ and a ≥ d·1e-30: the quotient is negative and far above the smallest normal f32.
+    a >= d * (1.0 + 1.0 / 1_048_576.0) || ((num < 0.0) != (den < 0.0) && a >= d * 1e-30)
 }
 
 #[cfg(test)]
@@ -632,6 +663,78 @@ mod tests {
             assert!((f0 - g0[k]).abs() < 1e-3, "{f0} {g0:?}");
             assert!((f1 - g1[k]).abs() < 1e-3, "{f1} {g1:?}");
         }
+    }
+
+    /// The shortcut of [`crossing`] rejects exactly what the divisions reject: compared with the
+    /// quotients themselves on random segments, near-parallel ones, shared and touching ends, and
+    /// quotients a rounding away from 0 and 1.
+    #[test]
+    fn crossing_shortcut_agrees_with_the_division() {
+        let division = |p0: Vec2, p1: Vec2, e0: Vec2, e1: Vec2| {
+            let (r, s) = (p1 - p0, e1 - e0);
+            let den = r.perp_dot(s);
+            if den.abs() < 1e-12 {
+                return None;
+            }
+            let w = e0 - p0;
+            let (t, u) = (w.perp_dot(s) / den, w.perp_dot(r) / den);
+            ((0.0..=1.0).contains(&t) && (0.0..=1.0).contains(&u)).then_some(t)
+        };
+        let mut seed = 17u64;
+        let mut rnd = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let (mut hits, mut cases) = (0, 0);
+        for k in 0..400_000 {
+            let p0 = Vec2::new((rnd() * 8.0).floor(), (rnd() * 8.0).floor());
+            let p1 = p0 + Vec2::new((rnd() * 3.0).floor() - 1.0, (rnd() * 3.0).floor() - 1.0);
+            let mut e0 = Vec2::new(rnd() * 8.0, rnd() * 8.0);
+            let mut e1 = e0 + Vec2::new(rnd() - 0.5, rnd() - 0.5) * 6.0;
+            match k % 5 {
+                // Ends on the pixel segment, or a pixel centre on the edge.
+                1 => e0 = p0.lerp(p1, rnd()),
+                2 => e1 = p1,
+                3 => e0 = p0 + (e1 - p0) * (1.0 + (rnd() - 0.5) * 1e-6),
+                // Nearly parallel to the pixel segment.
+                4 => e1 = e0 + (p1 - p0) * (rnd() * 4.0 - 2.0) + Vec2::new(rnd() - 0.5, rnd() - 0.5) * 1e-5,
+                _ => {}
+            }
+            let want = division(p0, p1, e0, e1);
+            assert_eq!(crossing(p0, p1, e0, e1).map(f32::to_bits), want.map(f32::to_bits), "{p0} {p1} {e0} {e1}");
+            hits += want.is_some() as usize;
+            cases += 1;
+        }
+        assert!(hits > cases / 20 && hits < cases / 2, "{hits} of {cases}");
+    }
+
+    /// What `surely_outside_unit` calls outside is outside for the division, at the edges too:
+    /// numerators a few ulps from ±den and from ±0, and tiny numerators of the other sign.
+    #[test]
+    fn surely_outside_means_the_quotient_is_outside() {
+        let mut seed = 5u64;
+        let (mut outside, mut cases) = (0, 0);
+        for _ in 0..20_000 {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let den = f32::from_bits(0x2B8C_BCCC + ((seed >> 33) as u32 % 0x2000_0000)); // 1e-12 .. 1e7
+            let den = if seed & 1 == 0 { den } else { -den };
+            let b = den.abs().to_bits();
+            let mut nums = Vec::new();
+            for k in 0..4u32 {
+                for m in [f32::from_bits(b + k), f32::from_bits(b - k), f32::from_bits(k), den.abs() * 1e-30] {
+                    nums.extend([m, -m]);
+                }
+            }
+            for num in nums {
+                let q = num / den;
+                if surely_outside_unit(num, den) {
+                    assert!(!(0.0..=1.0).contains(&q), "{num} / {den} = {q}");
+                    outside += 1;
+                }
+                cases += 1;
+            }
+        }
+        assert!(outside > cases / 4, "{outside} of {cases}");
     }
 
     #[test]
