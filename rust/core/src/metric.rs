@@ -310,12 +310,10 @@ impl OrientedPoints {
         Self { points, tangents }
     }
 
-    /// Strand points every `step` metres of arc, root and tip included
-    /// ([`StrandSet::resample_by_arclength`]), with root→tip unit tangents.
+    /// Strand points every `step` metres of arc with their tangents ([`crate::spatial::oriented_samples`]).
     pub fn from_strands(strands: &StrandSet, step: f32) -> Result<Self, StrandError> {
-        let r = strands.resample_by_arclength(step)?;
-        let tangents = r.tangents();
-        Ok(Self::new(r.into_parts().0, tangents))
+        let (points, tangents) = crate::spatial::oriented_samples(strands, step)?;
+        Ok(Self::new(points, tangents))
     }
 
     pub fn len(&self) -> usize {

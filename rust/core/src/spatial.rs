@@ -12,6 +12,15 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::{StrandError, StrandSet};
 
+/// Strand points every `step` metres of arc, root and tip included
+/// ([`StrandSet::resample_by_arclength`]), and their root→tip unit tangents ([`StrandSet::tangents`]):
+/// the one sampler of strands into oriented points.
+pub fn oriented_samples(strands: &StrandSet, step: f32) -> Result<(Vec<Vec3>, Vec<Vec3>), StrandError> {
+    let r = strands.resample_by_arclength(step)?;
+    let tangents = r.tangents();
+    Ok((r.into_parts().0, tangents))
+}
+
 /// Points with unit tangents and a kd-tree over the points.
 #[derive(Debug)]
 pub struct PointIndex {
@@ -32,9 +41,8 @@ impl PointIndex {
     /// Strand points every `step` metres of arc, root and tip included
     /// ([`StrandSet::resample_by_arclength`]), with root→tip unit tangents.
     pub fn from_strands(strands: &StrandSet, step: f32) -> Result<Self, StrandError> {
-        let r = strands.resample_by_arclength(step)?;
-        let tangents = r.tangents();
-        Ok(Self::new(r.into_parts().0, tangents))
+        let (points, tangents) = oriented_samples(strands, step)?;
+        Ok(Self::new(points, tangents))
     }
 
     pub fn len(&self) -> usize {

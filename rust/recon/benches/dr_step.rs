@@ -8,16 +8,16 @@
 //! `cargo bench -p hairrecon-recon --bench dr_step` (add `-- --quick` for a short run).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use glam::{Vec2, Vec3};
-use hairrecon_core::{Camera, StrandSet};
+use glam::Vec3;
+use hairrecon_core::Camera;
 use hairrecon_raster::synthetic::sphere_strands;
-use hairrecon_raster::{channel, strand_segments, AaMethod, RasterSettings, Renderer, SegmentShape, Width};
 use hairrecon_recon::dr::children::ChildMap;
 use hairrecon_recon::dr::optimize::Evaluator;
-use hairrecon_recon::dr::{DrOptions, DrTargets, DrView};
+use hairrecon_recon::dr::DrOptions;
 use hairrecon_recon::grow::BlendParams;
 
-const WIDTH_M: f32 = 0.0002;
+mod dr_data;
+use dr_data::{targets, WIDTH_M};
 
 /// Eight views around the sphere, portrait 256×384 as the colours preset.
 fn cameras() -> Vec<Camera> {
@@ -28,30 +28,6 @@ fn cameras() -> Vec<Camera> {
             Camera::look_at(eye, Vec3::new(0.0, 0.0, -0.02), Vec3::Z, 0.8, 256, 384).expect("camera")
         })
         .collect()
-}
-
-/// The coverage and orientation of `gt` in each view, as DR's targets.
-fn targets(gt: &StrandSet, cams: &[Camera]) -> DrTargets {
-    let segs = strand_segments(gt);
-    let settings = RasterSettings { width: Width::World(WIDTH_M), shape: SegmentShape::Quad, direction_3d: false };
-    let mut r = Renderer::new(AaMethod::Ours);
-    let views = cams
-        .iter()
-        .enumerate()
-        .map(|(i, cam)| {
-            let img = r.forward(cam, gt.points(), &segs, settings).expect("render").clone();
-            let px = |p: usize| img.pixel((p % cam.width() as usize) as u32, (p / cam.width() as usize) as u32);
-            let mask: Vec<f32> = (0..img.num_pixels()).map(|p| px(p)[channel::COVERAGE]).collect();
-            let orient: Vec<[f32; 3]> = (0..img.num_pixels())
-                .map(|p| {
-                    let o = Vec2::new(px(p)[channel::COS2], px(p)[channel::SIN2]).normalize_or_zero();
-                    [o.x, o.y, f32::from(u8::from(o != Vec2::ZERO))]
-                })
-                .collect();
-            DrView::new(i, *cam, mask, orient, None).expect("view")
-        })
-        .collect();
-    DrTargets { views }
 }
 
 fn bench(c: &mut Criterion) {

@@ -16,14 +16,16 @@
 
 use std::time::Instant;
 
-use glam::{Vec2, Vec3};
-use hairrecon_core::{Bvh, Camera, StrandSet, TriMesh};
+use glam::Vec3;
+use hairrecon_core::{Bvh, Camera, TriMesh};
 use hairrecon_raster::synthetic::sphere_strands;
-use hairrecon_raster::{channel, strand_segments, AaMethod, RasterSettings, Renderer, SegmentShape, Width};
-use hairrecon_recon::dr::{optimize, DrOptions, DrStage, DrTargets, DrView};
+use hairrecon_recon::dr::{optimize, DrOptions, DrStage};
 use hairrecon_recon::progress::NoProgress;
 
-const WIDTH_M: f32 = 0.0002;
+#[path = "../benches/dr_data.rs"]
+mod dr_data;
+use dr_data::{targets, WIDTH_M};
+
 const RADIUS: f32 = 0.09;
 
 /// `n` cameras on a golden-angle spiral over the upper half of the sphere of directions.
@@ -39,30 +41,6 @@ fn cameras(n: usize, height: u32) -> Vec<Camera> {
             Camera::look_at(eye, Vec3::new(0.0, 0.0, -0.02), up, 0.8, height * 2 / 3, height).expect("camera")
         })
         .collect()
-}
-
-/// The coverage and orientation of `gt` in each view, as DR's targets.
-fn targets(gt: &StrandSet, cams: &[Camera]) -> DrTargets {
-    let segs = strand_segments(gt);
-    let settings = RasterSettings { width: Width::World(WIDTH_M), shape: SegmentShape::Quad, direction_3d: false };
-    let mut r = Renderer::new(AaMethod::Ours);
-    let views = cams
-        .iter()
-        .enumerate()
-        .map(|(i, cam)| {
-            let img = r.forward(cam, gt.points(), &segs, settings).expect("render").clone();
-            let px = |p: usize| img.pixel((p % cam.width() as usize) as u32, (p / cam.width() as usize) as u32);
-            let mask: Vec<f32> = (0..img.num_pixels()).map(|p| px(p)[channel::COVERAGE]).collect();
-            let orient: Vec<[f32; 3]> = (0..img.num_pixels())
-                .map(|p| {
-                    let o = Vec2::new(px(p)[channel::COS2], px(p)[channel::SIN2]).normalize_or_zero();
-                    [o.x, o.y, f32::from(u8::from(o != Vec2::ZERO))]
-                })
-                .collect();
-            DrView::new(i, *cam, mask, orient, None).expect("view")
-        })
-        .collect();
-    DrTargets { views }
 }
 
 /// A UV sphere of radius `r`: the scalp the roots sit on.
