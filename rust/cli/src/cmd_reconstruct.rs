@@ -100,6 +100,10 @@ pub struct ReconstructArgs {
     /// DR steps on the children [default: 20].
     #[arg(long)]
     dr_iters_children: Option<usize>,
+    /// DR moves every Nth point of each strand (and its tip), the points between following them;
+    /// 1 moves every point [default: the configuration's dr_options.stride].
+    #[arg(long)]
+    dr_stride: Option<usize>,
     /// DR learning rate: the largest step of a point's coordinate in u per iteration, metres (halved
     /// when the strands carry curls, unless --dr-plain-curls) [default: 0.002].
     #[arg(long)]
@@ -155,6 +159,11 @@ fn config(a: &ReconstructArgs) -> Result<ReconstructConfig, Box<dyn std::error::
     }
     d.iterations_guides = a.dr_iters_guides.unwrap_or(d.iterations_guides);
     d.iterations_children = a.dr_iters_children.unwrap_or(d.iterations_children);
+    match a.dr_stride {
+        Some(0) => return Err("--dr-stride must be at least 1".into()),
+        Some(k) => d.stride = k,
+        None => {}
+    }
     d.guide_opt &= !a.no_guide_opt;
     d.reparam &= !a.no_reparam;
     d.neighbor_reparam &= !a.no_neighbor_reparam;

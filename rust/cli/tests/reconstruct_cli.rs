@@ -60,6 +60,8 @@ fn dr_flags_reach_the_options() {
         "5",
         "--dr-width-mm",
         "0.5",
+        "--dr-stride",
+        "3",
         "--seed",
         "9",
     ];
@@ -77,11 +79,13 @@ fn dr_flags_reach_the_options() {
     );
     assert_eq!((&d["reparam"], &d["neighbor_reparam"], &d["guide_opt"]), (&false.into(), &false.into(), &false.into()));
     assert_eq!((d["width_m"].as_f64(), d["seed"].as_u64(), c["seed"].as_u64()), (Some(0.0005), Some(9), Some(9)));
+    assert_eq!(d["stride"].as_u64(), Some(3));
     assert!(!out.exists(), "--print-config must not run anything");
     // The defaults: DR on, every part of it on.
     let c = cfg(&["--out", "unused-out", "--print-config"]);
     let d = &c["dr_options"];
     assert!(c["dr"] == true && d["reparam"] == true && d["neighbor_reparam"] == true && d["guide_opt"] == true, "{c}");
+    assert_eq!(d["stride"].as_u64(), Some(2), "DR moves every other point by default");
     assert_eq!(c["curl"], "Auto");
     assert_eq!(cfg(&["--out", "unused-out", "--print-config", "--curl", "off"])["curl"], "Off");
     let fixed = &cfg(&["--out", "unused-out", "--print-config", "--curl", "6.5,22,-1"])["curl"]["Fixed"];
@@ -106,6 +110,7 @@ fn dr_flags_reach_the_options() {
     for (flag, value, words) in [
         ("--dr-lr", "0", "--dr-lr must be a positive number"),
         ("--dr-views", "0", "--dr-views must be at least 1"),
+        ("--dr-stride", "0", "--dr-stride must be at least 1"),
         ("--dr-width-mm", "0", "--dr-width-mm must be a positive number"),
         ("--stop-after", "paint", "use one of head, masks, orient2d, orient3d, partings, direction, init, dr"),
         ("--from", "paint", "use one of head, masks, orient2d, orient3d, partings, direction, init, dr"),

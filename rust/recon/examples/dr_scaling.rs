@@ -3,7 +3,7 @@
 //! clean-up) on synthetic strands, so that no capture needs rendering.
 //!
 //! ```text
-//! cargo run --release -p hairrecon-recon --example dr_scaling -- STRANDS VIEWS HEIGHT [GUIDE_STEPS CHILD_STEPS]
+//! cargo run --release -p hairrecon-recon --example dr_scaling -- STRANDS VIEWS HEIGHT [GUIDE_STEPS CHILD_STEPS [STRIDE]]
 //! ```
 //!
 //! The ground truth is `STRANDS` strands of 100 segments, 25 cm long, rooted on a sphere of radius
@@ -12,7 +12,8 @@
 //! upper half of a sphere of directions; their targets are the ground truth's coverage and
 //! orientation. DR renders four of them per step, as the library does. Prints one line: the
 //! seconds per guide step and per child step (means over the steps), the whole run's seconds, and
-//! the process's peak resident memory (targets included).
+//! the process's peak resident memory (targets included). `STRIDE` is `DrOptions::stride` (default:
+//! the library's).
 
 use std::time::Instant;
 
@@ -77,7 +78,7 @@ fn peak_rss_mib() -> f64 {
 fn main() {
     let args: Vec<usize> = std::env::args().skip(1).map(|a| a.parse().expect("integer arguments")).collect();
     let [strands, views, height] = args[..3] else {
-        eprintln!("usage: dr_scaling STRANDS VIEWS HEIGHT [GUIDE_STEPS CHILD_STEPS]");
+        eprintln!("usage: dr_scaling STRANDS VIEWS HEIGHT [GUIDE_STEPS CHILD_STEPS [STRIDE]]");
         std::process::exit(2);
     };
     let (guide_steps, child_steps) = (args.get(3).copied().unwrap_or(6), args.get(4).copied().unwrap_or(3));
@@ -91,6 +92,7 @@ fn main() {
         iterations_guides: guide_steps,
         iterations_children: child_steps,
         width_m: WIDTH_M,
+        stride: args.get(5).copied().unwrap_or(DrOptions::default().stride),
         ..DrOptions::default()
     };
     let t = Instant::now();
@@ -102,11 +104,12 @@ fn main() {
     };
     println!(
         "strands {strands}, segments {}, views {views}, {}x{height} px: guide step {:.2} s, child step {:.2} s, \
-         DR {seconds:.1} s ({guide_steps} + {child_steps} steps), peak {:.0} MiB",
+         DR {seconds:.1} s ({guide_steps} + {child_steps} steps, stride {}), peak {:.0} MiB",
         init.num_points() - init.num_strands(),
         height * 2 / 3,
         per_step(DrStage::Guides),
         per_step(DrStage::Children),
+        opts.stride,
         peak_rss_mib()
     );
 }

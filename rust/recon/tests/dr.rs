@@ -161,6 +161,8 @@ fn opts() -> DrOptions {
         width_m: 0.001,
         views_per_step: 4,
         seed: 5,
+        // these strands have a point every ~6 mm, not the init's ~1.6 mm: DR moves every one
+        stride: 1,
         ..Default::default()
     }
 }
@@ -298,4 +300,45 @@ fn loss_chain_matches_finite_differences() {
     println!("{passed}/{checked} coordinates pass ({skipped} skipped)\n{}", bad.join("\n"));
     assert!(checked >= 20, "only {checked} coordinates kept the raster");
     assert!(passed as f64 >= 0.9 * checked as f64, "{passed}/{checked} coordinates pass");
+}
+
+/// DR with `stride` 2 is DR on the strands thinned to every other point (and the tip), the moves
+/// carried to the points between: without the final evening and the head, its kept points are the
+/// plain DR's on the thinned strands bit for bit, every point between moves by the mean of its two
+/// neighbours' moves, and each strand keeps its point count.
+#[test]
+fn dr_with_a_stride_is_dr_on_the_thinned_strands_lifted() {
+    use hairrecon_recon::dr::coarse::thin;
+    let sc = scene();
+    let o = DrOptions { iterations_guides: 4, iterations_children: 3, equalize_at_end: false, ..opts() };
+    let strided = optimize(
+        &sc.guides,
+        &sc.start,
+        &sc.targets,
+        &sc.scalp,
+        None,
+        &DrOptions { stride: 2, ..o.clone() },
+        &NoProgress,
+    )
+    .unwrap();
+    // the roots are snapped to the scalp before the thinning or after it alike
+    let (tg, tc) = (thin(&sc.guides, 2), thin(&sc.start, 2));
+    let plain = optimize(&tg, &tc, &sc.targets, &sc.scalp, None, &o, &NoProgress).unwrap();
+    assert_eq!(strided.children.counts(), sc.start.counts());
+    assert_eq!(strided.guides.counts(), sc.guides.counts());
+    assert!(thin(&strided.children, 2).points() == plain.children.points(), "the kept children differ");
+    assert!(thin(&strided.guides, 2).points() == plain.guides.points(), "the kept guides differ");
+    assert_eq!(strided.loss_curve.len(), 7);
+    let mut between = 0;
+    for (i, s) in strided.children.iter().enumerate() {
+        let s0 = sc.start.strand(i);
+        // the root moved only onto the scalp, before DR
+        let moved = |d: usize| if d == 0 { Vec3::ZERO } else { s[d] - s0[d] };
+        for d in (1..s.len() - 1).step_by(2) {
+            let want = 0.5 * (moved(d - 1) + moved(d + 1));
+            assert!((moved(d) - want).length() < 1e-6, "strand {i} point {d}");
+            between += 1;
+        }
+    }
+    assert!(between > 1000 && plain.children.points() != tc.points(), "nothing moved");
 }

@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use super::adam::Adam;
 use super::children::ChildMap;
+use super::coarse;
 use super::losses::{image_loss, median_segment_length, regularizers, second_differences, LossTerms, LossWeights};
 use super::reparam::{LaplacianParams, Reparam};
 use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
@@ -368,7 +369,8 @@ fn run_stage(
 
 /// Optimizes guides and children against the targets (see the module doc). `guides` may be empty
 /// (then only the children are optimized), and so may `children` (then the guides are rendered
-/// themselves). `scalp` places the roots; `head` keeps the strands out of the head.
+/// themselves). `scalp` places the roots; `head` keeps the strands out of the head. With
+/// [`DrOptions::stride`] above 1 the steps move every `stride`-th point ([`coarse`]).
 pub fn optimize(
     guides: &StrandSet,
     children: &StrandSet,
@@ -384,17 +386,51 @@ pub fn optimize(
     if guides.is_empty() && children.is_empty() {
         return Err(DrError::Empty);
     }
-    let snap = |s: &StrandSet| -> Vec<Vec3> {
+    let snap = |s: &StrandSet| -> Result<StrandSet, DrError> {
         let mut p = s.points().to_vec();
         for &o in &s.offsets()[..s.num_strands()] {
             if let Some(cp) = scalp.closest_point(p[o], 0.05) {
                 p[o] = cp.point;
             }
         }
-        p
+        StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Empty)
     };
-    let mut gx = snap(guides);
-    let mut cx = snap(children);
+    let (guides, children) = (snap(guides)?, snap(children)?);
+    let k = opts.stride.max(1);
+    let (gx, cx, loss_curve, mean_cg_iterations) = if k == 1 {
+        optimize_points(&guides, &children, targets, head, opts, progress)?
+    } else {
+        let (g, c) = (coarse::thin(&guides, k), coarse::thin(&children, k));
+        let (gx, cx, curve, cg) = optimize_points(&g, &c, targets, head, opts, progress)?;
+        (coarse::lift(&guides, k, g.points(), &gx), coarse::lift(&children, k, c.points(), &cx), curve, cg)
+    };
+    progress.check()?;
+    progress.update("dr", 1.0, "finalizing");
+    let build = |p: Vec<Vec3>, s: &StrandSet| StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Diverged(0));
+    let g = build(gx, &guides)?;
+    let c = build(cx, &children)?;
+    Ok(DrResult {
+        guides: finalize(&g, scalp, head, opts.head_clearance, opts.equalize_at_end),
+        children: finalize(&c, scalp, head, opts.head_clearance, opts.equalize_at_end),
+        loss_curve,
+        mean_cg_iterations,
+    })
+}
+
+/// The points of [`optimize`]'s steps on strands whose roots are already on the scalp: the guides',
+/// the children's, the loss curve and the mean conjugate-gradient iterations per solve.
+type Optimized = (Vec<Vec3>, Vec<Vec3>, Vec<LossRecord>, f32);
+
+fn optimize_points(
+    guides: &StrandSet,
+    children: &StrandSet,
+    targets: &DrTargets,
+    head: Option<&Bvh>,
+    opts: &DrOptions,
+    progress: &dyn Progress,
+) -> Result<Optimized, DrError> {
+    let mut gx = guides.points().to_vec();
+    let mut cx = children.points().to_vec();
     let guide_stage = opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
     let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
     let child_steps = if children.is_empty() { 0 } else { opts.iterations_children };
@@ -403,13 +439,7 @@ pub fn optimize(
     let (mut cg, mut solves) = (0usize, 0usize);
     if guide_stage {
         // With children, the guide stage renders them in place of the guides (a fixed linear map).
-        let mut map = if children.is_empty() {
-            None
-        } else {
-            let g0 = StrandSet::new(gx.clone(), guides.counts().to_vec()).map_err(|_| DrError::Empty)?;
-            let c0 = StrandSet::new(cx.clone(), children.counts().to_vec()).map_err(|_| DrError::Empty)?;
-            Some(ChildMap::new(&g0, &c0, &opts.child_blend))
-        };
+        let mut map = if children.is_empty() { None } else { Some(ChildMap::new(guides, children, &opts.child_blend)) };
         let stats = run_stage(
             StageInput {
                 stage: DrStage::Guides,
@@ -461,17 +491,7 @@ pub fn optimize(
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
-    progress.check()?;
-    progress.update("dr", 1.0, "finalizing");
-    let build = |p: Vec<Vec3>, s: &StrandSet| StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Diverged(0));
-    let g = build(gx, guides)?;
-    let c = build(cx, children)?;
-    Ok(DrResult {
-        guides: finalize(&g, scalp, head, opts.head_clearance, opts.equalize_at_end),
-        children: finalize(&c, scalp, head, opts.head_clearance, opts.equalize_at_end),
-        loss_curve,
-        mean_cg_iterations: if solves > 0 { cg as f32 / solves as f32 } else { 0.0 },
-    })
+    Ok((gx, cx, loss_curve, if solves > 0 { cg as f32 / solves as f32 } else { 0.0 }))
 }
 
 /// Makes strands simulation-ready: each root on the closest scalp point (within 5 cm), optionally
