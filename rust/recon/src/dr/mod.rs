@@ -14,6 +14,8 @@
 //!   after Nicolet et al. 2021.
 //! - [`adam`]: Adam, with the uniform variant of Nicolet et al.
 //! - [`children`]: children as a linear function of the guides, for the guide stage.
+//! - [`coarse`]: the strands thinned to every `stride`-th point for the steps, and the moves carried
+//!   back to every point.
 //! - [`optimize`](mod@optimize): the hierarchy (guides, then children), random views per step,
 //!   rayon over views, and the final simulation-ready pass.
 //! - [`report`]: the loss curves as `loss.csv` and `loss.png`.
@@ -269,7 +271,7 @@ pub struct DrOptions {
     /// follow the two around them ([`coarse`]). 1: every point. The init's strands have a point
     /// every ~1.6 mm, and DR's time and memory follow the points it moves. DR alone on the colours
     /// preset's inits (60 + 20 steps; undirected F1 at 1 · 2 · 3 mm, peak memory), stride 1 → 2:
-    /// straight 63.3 · 88.2 · 95.3, 4.25 GB → 63.9 · 88.7 · 95.5, 2.38 GB; curly 18.9 · 73.5 · 92.6
+    /// straight 63.3 · 88.2 · 95.3, 4.05 GiB → 63.9 · 88.7 · 95.5, 2.27 GiB; curly 18.9 · 73.5 · 92.6
     /// at 2 (docs/reconstruction.md). A configuration without it (a run's from before it) replays
     /// at 1.
     #[serde(default = "one")]
