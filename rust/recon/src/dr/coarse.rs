@@ -50,15 +50,7 @@ pub fn lift(dense: &StrandSet, k: usize, before: &[Vec3], after: &[Vec3]) -> Vec
     assert_eq!(before.len(), coarse_offsets[dense.num_strands()], "`before` is not thinned from `dense`");
     assert_eq!(after.len(), before.len(), "`before` and `after` differ in length");
     let mut out = dense.points().to_vec();
-    let offs = dense.offsets();
-    let mut parts: Vec<&mut [Vec3]> = Vec::with_capacity(dense.num_strands());
-    let mut rest = out.as_mut_slice();
-    for w in offs.windows(2) {
-        let (a, b) = rest.split_at_mut(w[1] - w[0]);
-        parts.push(a);
-        rest = b;
-    }
-    parts.into_par_iter().enumerate().for_each(|(i, s)| {
+    super::strands_mut(&mut out, dense.offsets()).into_par_iter().enumerate().for_each(|(i, s)| {
         let c0 = coarse_offsets[i];
         let n = s.len();
         let moved = |j: usize| after[c0 + j] - before[c0 + j];

@@ -381,6 +381,19 @@ pub struct DrResult {
     pub mean_cg_iterations: f32,
 }
 
+/// Each strand's points of `points` (laid out by `offsets`, a strand set's), as one mutable slice a
+/// strand, to work on in parallel.
+pub(crate) fn strands_mut<'a>(points: &'a mut [Vec3], offsets: &[usize]) -> Vec<&'a mut [Vec3]> {
+    let mut parts = Vec::with_capacity(offsets.len().saturating_sub(1));
+    let mut rest = points;
+    for w in offsets.windows(2) {
+        let (a, b) = rest.split_at_mut(w[1] - w[0]);
+        parts.push(a);
+        rest = b;
+    }
+    parts
+}
+
 /// Points deeper inside the head than this are left alone by [`push_out_of_head`]: on a head mesh
 /// with holes (a cut neck) the pseudo-normal sign can be wrong far from the surface, and moving such
 /// a point up to 5 cm onto the surface did more harm than good (measured on the test-preset

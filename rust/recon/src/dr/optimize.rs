@@ -19,7 +19,7 @@ use super::children::ChildMap;
 use super::coarse;
 use super::losses::{image_loss, median_segment_length, regularizers, second_differences, LossTerms, LossWeights};
 use super::reparam::{LaplacianParams, Reparam};
-use super::{push_out_of_head, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
+use super::{push_out_of_head, strands_mut, DrError, DrOptions, DrResult, DrStage, DrTargets, LossRecord};
 use crate::progress::Progress;
 
 /// Seeded view picker (xorshift64*).
@@ -502,15 +502,7 @@ fn optimize_points(
 /// concavity of the head deeper than `clearance`.
 pub fn finalize(strands: &StrandSet, scalp: &Bvh, head: Option<&Bvh>, clearance: f32, equalize: bool) -> StrandSet {
     let mut out: Vec<Vec3> = strands.points().to_vec();
-    let offs = strands.offsets();
-    let mut parts: Vec<&mut [Vec3]> = Vec::with_capacity(strands.num_strands());
-    let mut rest = out.as_mut_slice();
-    for w in offs.windows(2) {
-        let (a, b) = rest.split_at_mut(w[1] - w[0]);
-        parts.push(a);
-        rest = b;
-    }
-    parts.into_par_iter().for_each(|s| {
+    strands_mut(&mut out, strands.offsets()).into_par_iter().for_each(|s| {
         if let Some(cp) = scalp.closest_point(s[0], 0.05) {
             s[0] = cp.point;
         }
