@@ -95,8 +95,9 @@ fn main() {
         stride: args.get(5).copied().unwrap_or(DrOptions::default().stride),
         ..DrOptions::default()
     };
+    let segments = init.num_points() - init.num_strands();
     let t = Instant::now();
-    let r = optimize(&guides, &init, &targets, &scalp, None, &opts, &NoProgress).expect("optimize");
+    let r = optimize(guides, init, &targets, &scalp, None, &opts, &NoProgress).expect("optimize");
     let seconds = t.elapsed().as_secs_f64();
     let per_step = |stage: DrStage| {
         let s: Vec<f32> = r.loss_curve.iter().filter(|l| l.stage == stage).map(|l| l.seconds).collect();
@@ -105,7 +106,7 @@ fn main() {
     println!(
         "strands {strands}, segments {}, views {views}, {}x{height} px: guide step {:.2} s, child step {:.2} s, \
          DR {seconds:.1} s ({guide_steps} + {child_steps} steps, stride {}), peak {:.0} MiB",
-        init.num_points() - init.num_strands(),
+        segments,
         height * 2 / 3,
         per_step(DrStage::Guides),
         per_step(DrStage::Children),

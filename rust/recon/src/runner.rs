@@ -316,7 +316,7 @@ fn run_stages(
     }
 
     let t = StageClock::start();
-    let o = stages::dr::run(ctx, cfg, &init, &maps, &scalp)?;
+    let o = stages::dr::run(ctx, cfg, init, maps, &scalp)?;
     o.save(ctx)?;
     finished(ctx, report, Stage::Dr, t, &o.stats)?;
     ctx.progress.update("metrics", 0.5, "scoring strands");

@@ -178,7 +178,7 @@ fn score(s: &StrandSet, gt: &StrandSet) -> (f64, f32) {
 }
 
 fn run(sc: &Scene, o: &DrOptions) -> DrResult {
-    optimize(&sc.guides, &sc.start, &sc.targets, &sc.scalp, Some(&sc.head), o, &NoProgress).unwrap()
+    optimize(sc.guides.clone(), sc.start.clone(), &sc.targets, &sc.scalp, Some(&sc.head), o, &NoProgress).unwrap()
 }
 
 fn mean_first_last(curve: &[LossRecord], n: usize) -> (f64, f64) {
@@ -312,8 +312,8 @@ fn dr_with_a_stride_is_dr_on_the_thinned_strands_lifted() {
     let sc = scene();
     let o = DrOptions { iterations_guides: 4, iterations_children: 3, equalize_at_end: false, ..opts() };
     let strided = optimize(
-        &sc.guides,
-        &sc.start,
+        sc.guides.clone(),
+        sc.start.clone(),
         &sc.targets,
         &sc.scalp,
         None,
@@ -323,7 +323,7 @@ fn dr_with_a_stride_is_dr_on_the_thinned_strands_lifted() {
     .unwrap();
     // the roots are snapped to the scalp before the thinning or after it alike
     let (tg, tc) = (thin(&sc.guides, 2), thin(&sc.start, 2));
-    let plain = optimize(&tg, &tc, &sc.targets, &sc.scalp, None, &o, &NoProgress).unwrap();
+    let plain = optimize(tg, tc.clone(), &sc.targets, &sc.scalp, None, &o, &NoProgress).unwrap();
     assert_eq!(strided.children.counts(), sc.start.counts());
     assert_eq!(strided.guides.counts(), sc.guides.counts());
     assert!(thin(&strided.children, 2).points() == plain.children.points(), "the kept children differ");
@@ -341,4 +341,34 @@ fn dr_with_a_stride_is_dr_on_the_thinned_strands_lifted() {
         }
     }
     assert!(between > 1000 && plain.children.points() != tc.points(), "nothing moved");
+}
+
+/// The guide stage at half the image scale (`guide_downsample` 2) renders a quarter of the pixels
+/// (the image terms, sums over pixels, are about a quarter of the full scale's, a little less where
+/// a block's pixels disagree in orientation) and still grows the shortened strands back.
+#[test]
+fn a_guide_stage_at_half_scale_still_grows_the_strands_back() {
+    use hairrecon_recon::dr::downsample;
+    let sc = scene();
+    let (f0, t0) = score(&sc.start, &sc.gt);
+    let o = DrOptions { iterations_children: 50, guide_downsample: 2, ..opts() };
+    let views: Vec<usize> = (0..4).collect();
+    let image_terms = |t: &DrTargets| {
+        let s = &sc.start;
+        let mut ev = Evaluator::new(s.points(), s.offsets(), None, t, &o);
+        let mut g = vec![Vec3::ZERO; s.num_points()];
+        let l = ev.evaluate(s.points(), s.offsets(), None, t, &views, &o, &mut g).unwrap();
+        l.mask + l.orientation
+    };
+    let half_targets = downsample::targets(&sc.targets, 2).unwrap();
+    assert_eq!(half_targets.views[0].camera.width(), sc.targets.views[0].camera.width() / 2);
+    let ratio = image_terms(&half_targets) / image_terms(&sc.targets);
+    let r = run(&sc, &o);
+    let (f1, t1) = score(&r.children, &sc.gt);
+    println!("image terms, half over full scale: {ratio:.3}; F1 {f0:.1} → {f1:.1}, tip {t0:.1} → {t1:.1} mm");
+    assert!((0.15..0.3).contains(&ratio), "half scale must render a quarter of the pixels: ratio {ratio:.3}");
+    assert!(
+        f1 > f0 + 12.0 && t1 < 0.7 * t0,
+        "DR must bring the strands closer: F1 {f0:.1} → {f1:.1}, tip {t0:.1} → {t1:.1} mm"
+    );
 }

@@ -16,6 +16,7 @@
 //! - [`children`]: children as a linear function of the guides, for the guide stage.
 //! - [`coarse`]: the strands thinned to every `stride`-th point for the steps, and the moves carried
 //!   back to every point.
+//! - [`downsample`]: the targets at a coarser image scale, for the guide stage.
 //! - [`optimize`](mod@optimize): the hierarchy (guides, then children), random views per step,
 //!   rayon over views, and the final simulation-ready pass.
 //! - [`report`]: the loss curves as `loss.csv` and `loss.png`.
@@ -41,6 +42,7 @@
 pub mod adam;
 pub mod children;
 pub mod coarse;
+pub mod downsample;
 pub mod losses;
 pub mod optimize;
 pub mod reparam;
@@ -77,6 +79,8 @@ pub enum DrError {
     MapCount(usize, usize),
     #[error("the strands have no points to optimize")]
     Empty,
+    #[error("the targets at a coarser scale: {0}")]
+    Downsample(String),
     #[error("the optimization diverged (non-finite loss at iteration {0}); lower the learning rate")]
     Diverged(usize),
 }
@@ -276,6 +280,11 @@ pub struct DrOptions {
     /// at 1.
     #[serde(default = "one")]
     pub stride: usize,
+    /// The guide stage renders and compares at an image scale this many times smaller in both
+    /// directions ([`downsample`]); the child stage at full scale. 1: full scale. A configuration
+    /// without it (a run's from before it) replays at 1.
+    #[serde(default = "one")]
+    pub guide_downsample: usize,
     pub weights: LossWeights,
     pub seed: u64,
 }
@@ -310,6 +319,7 @@ impl Default for DrOptions {
             curvature_relative: false,
             cg_tolerance: 1e-3,
             stride: 2,
+            guide_downsample: 1,
             weights: LossWeights::default(),
             seed: 0,
         }

@@ -72,6 +72,7 @@ pub struct Evaluator {
     grad: Vec<Vec3>,
     segs: Vec<[u32; 2]>,
     render_pts: Vec<Vec3>,
+    /// With a child map: the children's gradient (the guides' follows from it); else empty.
     g_render: Vec<Vec3>,
     /// Length scale of the regularizers (median initial segment length).
     pub scale: f32,
@@ -181,7 +182,7 @@ impl Evaluator {
             grad: Vec::new(),
             segs: segments(&render_offsets),
             render_pts: vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }],
-            g_render: vec![Vec3::ZERO; n_render],
+            g_render: vec![Vec3::ZERO; if map.is_some() { n_render } else { 0 }],
             scale: median_segment_length(x, offsets),
             reg_factor: regularizer_factor(targets, x.len()),
             curvature_ref: opts.curvature_relative.then(|| second_differences(x, offsets)),
@@ -220,7 +221,9 @@ impl Evaluator {
         // The views in order, each view's gradient added before the next: the result does not
         // depend on the thread count.
         let inv_v = 1.0 / views.len().max(1) as f32;
-        self.g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
+        // Rendered through children, their gradient gathers in `g_render`; else straight in `g_x`.
+        let g_render: &mut [Vec3] = if map.is_some() { &mut self.g_render } else { &mut *g_x };
+        g_render.iter_mut().for_each(|g| *g = Vec3::ZERO);
         let mut loss = LossTerms::default();
         let (renderer, grad, d_image) = (&mut self.renderer, &mut self.grad, &mut self.d_image);
         for (ids, &v) in self.ids.iter_mut().zip(views) {
@@ -233,14 +236,11 @@ impl Evaluator {
             grad.resize(pts.len(), Vec3::ZERO);
             renderer.backward(&view.camera, pts, d_image, grad)?;
             loss += view_loss * inv_v as f64;
-            self.g_render.par_iter_mut().zip(&*grad).with_min_len(1 << 16).for_each(|(g, s)| *g += *s * inv_v);
+            g_render.par_iter_mut().zip(&*grad).with_min_len(1 << 16).for_each(|(g, s)| *g += *s * inv_v);
         }
-        match map {
-            Some(m) => {
-                g_x.iter_mut().for_each(|g| *g = Vec3::ZERO);
-                m.backward(&self.g_render, g_x);
-            }
-            None => g_x.copy_from_slice(&self.g_render),
+        if let Some(m) = map {
+            g_x.iter_mut().for_each(|g| *g = Vec3::ZERO);
+            m.backward(&self.g_render, g_x);
         }
         let w = &opts.weights;
         let f = self.reg_factor;
@@ -315,6 +315,8 @@ fn run_stage(
     // Δu, then the points pushed out of the head: one buffer of the free points' size for the
     // three (50,000 children: ~96 MB each).
     let mut g_free = vec![Vec3::ZERO; nf];
+    // `g_u` and `delta_x` start each solve from the last step's solution (the solves are warm
+    // started), so they are kept apart.
     let mut g_u = vec![Vec3::ZERO; nf];
     let mut delta_x = vec![Vec3::ZERO; nf];
     for it in 0..iterations {
@@ -372,8 +374,8 @@ fn run_stage(
 /// themselves). `scalp` places the roots; `head` keeps the strands out of the head. With
 /// [`DrOptions::stride`] above 1 the steps move every `stride`-th point ([`coarse`]).
 pub fn optimize(
-    guides: &StrandSet,
-    children: &StrandSet,
+    guides: StrandSet,
+    children: StrandSet,
     targets: &DrTargets,
     scalp: &Bvh,
     head: Option<&Bvh>,
@@ -386,14 +388,16 @@ pub fn optimize(
     if guides.is_empty() && children.is_empty() {
         return Err(DrError::Empty);
     }
-    let snap = |s: &StrandSet| -> Result<StrandSet, DrError> {
-        let mut p = s.points().to_vec();
-        for &o in &s.offsets()[..s.num_strands()] {
+    // In place: the caller's sets are DR's to keep (50,000 children of ~250 points: 150 MB a copy).
+    let snap = |s: StrandSet| -> Result<StrandSet, DrError> {
+        let offsets = s.offsets()[..s.num_strands()].to_vec();
+        let (mut p, counts) = s.into_parts();
+        for o in offsets {
             if let Some(cp) = scalp.closest_point(p[o], 0.05) {
                 p[o] = cp.point;
             }
         }
-        StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Empty)
+        StrandSet::new(p, counts).map_err(|_| DrError::Empty)
     };
     let (guides, children) = (snap(guides)?, snap(children)?);
     let k = opts.stride.max(1);
@@ -438,6 +442,14 @@ fn optimize_points(
     let mut loss_curve = Vec::with_capacity(steps_total);
     let (mut cg, mut solves) = (0usize, 0usize);
     if guide_stage {
+        let coarse_targets;
+        let guide_targets = match opts.guide_downsample {
+            0 | 1 => targets,
+            f => {
+                coarse_targets = super::downsample::targets(targets, f as u32)?;
+                &coarse_targets
+            }
+        };
         // With children, the guide stage renders them in place of the guides (a fixed linear map).
         let mut map = if children.is_empty() { None } else { Some(ChildMap::new(guides, children, &opts.child_blend)) };
         let stats = run_stage(
@@ -450,7 +462,7 @@ fn optimize_points(
                 steps_before: 0,
                 steps_total,
             },
-            targets,
+            guide_targets,
             head,
             opts,
             progress,
