@@ -104,6 +104,15 @@ pub struct ReconstructArgs {
     /// 1 moves every point [default: the configuration's dr_options.stride].
     #[arg(long)]
     dr_stride: Option<usize>,
+    /// DR's guide stage renders and compares the views N times smaller in both directions (the
+    /// child stage at full size); 1 is full size [default: the configuration's
+    /// dr_options.guide_downsample].
+    #[arg(long)]
+    dr_guide_downsample: Option<usize>,
+    /// DR's guide stage moves the strands on every Nth point (the child stage on every
+    /// --dr-stride-th) [default: the configuration's dr_options.guide_stride; 0 there: --dr-stride].
+    #[arg(long)]
+    dr_guide_stride: Option<usize>,
     /// DR learning rate: the largest step of a point's coordinate in u per iteration, metres (halved
     /// when the strands carry curls, unless --dr-plain-curls) [default: 0.002].
     #[arg(long)]
@@ -162,6 +171,16 @@ fn config(a: &ReconstructArgs) -> Result<ReconstructConfig, Box<dyn std::error::
     match a.dr_stride {
         Some(0) => return Err("--dr-stride must be at least 1".into()),
         Some(k) => d.stride = k,
+        None => {}
+    }
+    match a.dr_guide_downsample {
+        Some(0) => return Err("--dr-guide-downsample must be at least 1".into()),
+        Some(f) => d.guide_downsample = f,
+        None => {}
+    }
+    match a.dr_guide_stride {
+        Some(0) => return Err("--dr-guide-stride must be at least 1".into()),
+        Some(k) => d.guide_stride = k,
         None => {}
     }
     d.guide_opt &= !a.no_guide_opt;

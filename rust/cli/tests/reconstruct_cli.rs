@@ -62,6 +62,10 @@ fn dr_flags_reach_the_options() {
         "0.5",
         "--dr-stride",
         "3",
+        "--dr-guide-downsample",
+        "4",
+        "--dr-guide-stride",
+        "5",
         "--seed",
         "9",
     ];
@@ -79,7 +83,10 @@ fn dr_flags_reach_the_options() {
     );
     assert_eq!((&d["reparam"], &d["neighbor_reparam"], &d["guide_opt"]), (&false.into(), &false.into(), &false.into()));
     assert_eq!((d["width_m"].as_f64(), d["seed"].as_u64(), c["seed"].as_u64()), (Some(0.0005), Some(9), Some(9)));
-    assert_eq!(d["stride"].as_u64(), Some(3));
+    assert_eq!(
+        (d["stride"].as_u64(), d["guide_downsample"].as_u64(), d["guide_stride"].as_u64()),
+        (Some(3), Some(4), Some(5))
+    );
     assert!(!out.exists(), "--print-config must not run anything");
     // The defaults: DR on, every part of it on.
     let c = cfg(&["--out", "unused-out", "--print-config"]);
@@ -111,6 +118,8 @@ fn dr_flags_reach_the_options() {
         ("--dr-lr", "0", "--dr-lr must be a positive number"),
         ("--dr-views", "0", "--dr-views must be at least 1"),
         ("--dr-stride", "0", "--dr-stride must be at least 1"),
+        ("--dr-guide-downsample", "0", "--dr-guide-downsample must be at least 1"),
+        ("--dr-guide-stride", "0", "--dr-guide-stride must be at least 1"),
         ("--dr-width-mm", "0", "--dr-width-mm must be a positive number"),
         ("--stop-after", "paint", "use one of head, masks, orient2d, orient3d, partings, direction, init, dr"),
         ("--from", "paint", "use one of head, masks, orient2d, orient3d, partings, direction, init, dr"),

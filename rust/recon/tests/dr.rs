@@ -372,3 +372,25 @@ fn a_guide_stage_at_half_scale_still_grows_the_strands_back() {
         "DR must bring the strands closer: F1 {f0:.1} → {f1:.1}, tip {t0:.1} → {t1:.1} mm"
     );
 }
+
+/// With `guide_stride` 2 and `stride` 1, the guide stage is the one DR runs at stride 2 (without a
+/// child stage the two give the same bytes), and the child stage then moves every point of the
+/// children it leaves.
+#[test]
+fn a_coarser_guide_stride_runs_the_guide_stage_thinned_and_the_child_stage_on_every_point() {
+    let sc = scene();
+    let (f0, t0) = score(&sc.start, &sc.gt);
+    let o = DrOptions { iterations_guides: 60, iterations_children: 0, ..opts() };
+    let split = run(&sc, &DrOptions { guide_stride: 2, ..o.clone() });
+    let strided = run(&sc, &DrOptions { stride: 2, ..o.clone() });
+    assert!(split.children.points() == strided.children.points(), "the guide stages differ");
+    assert!(split.guides.points() == strided.guides.points(), "the guide stages differ");
+    let both = run(&sc, &DrOptions { guide_stride: 2, iterations_children: 30, ..o });
+    assert_eq!(both.loss_curve.iter().filter(|l| l.stage == DrStage::Children).count(), 30);
+    let (f1, t1) = score(&split.children, &sc.gt);
+    let (f2, t2) = score(&both.children, &sc.gt);
+    println!("F1 {f0:.1} → {f1:.1} (guides) → {f2:.1} (children), tip {t0:.1} → {t1:.1} → {t2:.1} mm");
+    assert!(both.children.points() != split.children.points(), "the child stage moved nothing");
+    assert!(f2 > f1 + 5.0 && t2 < t1, "the child stage must bring the strands closer: F1 {f1:.1} → {f2:.1}");
+    assert!(f2 > f0 + 12.0 && t2 < 0.8 * t0, "DR must bring the strands closer: F1 {f0:.1} → {f2:.1}");
+}

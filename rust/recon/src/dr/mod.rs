@@ -285,6 +285,12 @@ pub struct DrOptions {
     /// without it (a run's from before it) replays at 1.
     #[serde(default = "one")]
     pub guide_downsample: usize,
+    /// The guide stage's stride (0: `stride`): the guide stage renders the children through their
+    /// map on points this far apart, the child stage on points `stride` apart. A guide step renders
+    /// every child, and its time follows their points. A configuration without it (a run's from
+    /// before it) replays with 0.
+    #[serde(default)]
+    pub guide_stride: usize,
     pub weights: LossWeights,
     pub seed: u64,
 }
@@ -320,6 +326,7 @@ impl Default for DrOptions {
             cg_tolerance: 1e-3,
             stride: 2,
             guide_downsample: 1,
+            guide_stride: 0,
             weights: LossWeights::default(),
             seed: 0,
         }

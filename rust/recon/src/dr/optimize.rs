@@ -401,13 +401,33 @@ pub fn optimize(
     };
     let (guides, children) = (snap(guides)?, snap(children)?);
     let k = opts.stride.max(1);
-    let (gx, cx, loss_curve, mean_cg_iterations) = if k == 1 {
-        optimize_points(&guides, &children, targets, head, opts, progress)?
-    } else {
+    let kg = if opts.guide_stride == 0 { k } else { opts.guide_stride };
+    let guide_stage = opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
+    let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
+    let child_steps = if children.is_empty() { 0 } else { opts.iterations_children };
+    let all = Steps { guides: guide_stage, children: true, before: 0, total: guide_steps + child_steps };
+    let (gx, cx, loss_curve, cg) = if k == 1 && kg == 1 {
+        optimize_points(&guides, &children, targets, head, opts, progress, all)?
+    } else if kg == k || !guide_stage {
         let (g, c) = (coarse::thin(&guides, k), coarse::thin(&children, k));
-        let (gx, cx, curve, cg) = optimize_points(&g, &c, targets, head, opts, progress)?;
+        let (gx, cx, curve, cg) = optimize_points(&g, &c, targets, head, opts, progress, all)?;
         (coarse::lift(&guides, k, g.points(), &gx), coarse::lift(&children, k, c.points(), &cx), curve, cg)
+    } else {
+        // The guide stage on strands thinned by `kg`, the child stage on its children thinned by `k`.
+        let (g, c) = (coarse::thin(&guides, kg), coarse::thin(&children, kg));
+        let first = Steps { children: false, ..all };
+        let (gx, cx, mut curve, cg1) = optimize_points(&g, &c, targets, head, opts, progress, first)?;
+        let gx = coarse::lift(&guides, kg, g.points(), &gx);
+        let mid = StrandSet::new(coarse::lift(&children, kg, c.points(), &cx), children.counts().to_vec())
+            .map_err(|_| DrError::Diverged(0))?;
+        drop(c);
+        let c = coarse::thin(&mid, k);
+        let second = Steps { guides: false, before: guide_steps, ..all };
+        let (_, cx, curve2, cg2) = optimize_points(&StrandSet::empty(), &c, targets, head, opts, progress, second)?;
+        curve.extend(curve2);
+        (gx, coarse::lift(&mid, k, c.points(), &cx), curve, (cg1.0 + cg2.0, cg1.1 + cg2.1))
     };
+    let mean_cg_iterations = if cg.1 > 0 { cg.0 as f32 / cg.1 as f32 } else { 0.0 };
     progress.check()?;
     progress.update("dr", 1.0, "finalizing");
     let build = |p: Vec<Vec3>, s: &StrandSet| StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Diverged(0));
@@ -422,8 +442,18 @@ pub fn optimize(
 }
 
 /// The points of [`optimize`]'s steps on strands whose roots are already on the scalp: the guides',
-/// the children's, the loss curve and the mean conjugate-gradient iterations per solve.
-type Optimized = (Vec<Vec3>, Vec<Vec3>, Vec<LossRecord>, f32);
+/// the children's, the loss curve and the conjugate-gradient iterations and solves.
+type Optimized = (Vec<Vec3>, Vec<Vec3>, Vec<LossRecord>, (usize, usize));
+
+/// Which stages [`optimize_points`] runs, and where their steps fall among all of DR's (for the
+/// progress fraction).
+#[derive(Debug, Clone, Copy)]
+struct Steps {
+    guides: bool,
+    children: bool,
+    before: usize,
+    total: usize,
+}
 
 fn optimize_points(
     guides: &StrandSet,
@@ -432,14 +462,15 @@ fn optimize_points(
     head: Option<&Bvh>,
     opts: &DrOptions,
     progress: &dyn Progress,
+    steps: Steps,
 ) -> Result<Optimized, DrError> {
     let mut gx = guides.points().to_vec();
     let mut cx = children.points().to_vec();
-    let guide_stage = opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
+    let guide_stage = steps.guides && opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
     let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
-    let child_steps = if children.is_empty() { 0 } else { opts.iterations_children };
-    let steps_total = guide_steps + child_steps;
-    let mut loss_curve = Vec::with_capacity(steps_total);
+    let child_steps = if children.is_empty() || !steps.children { 0 } else { opts.iterations_children };
+    let steps_total = steps.total;
+    let mut loss_curve = Vec::with_capacity(guide_steps + child_steps);
     let (mut cg, mut solves) = (0usize, 0usize);
     if guide_stage {
         let coarse_targets;
@@ -459,7 +490,7 @@ fn optimize_points(
                 offsets: guides.offsets(),
                 map: map.as_mut(),
                 iterations: guide_steps,
-                steps_before: 0,
+                steps_before: steps.before,
                 steps_total,
             },
             guide_targets,
@@ -491,7 +522,7 @@ fn optimize_points(
                 offsets: children.offsets(),
                 map: None,
                 iterations: child_steps,
-                steps_before: guide_steps,
+                steps_before: steps.before + guide_steps,
                 steps_total,
             },
             targets,
@@ -503,7 +534,7 @@ fn optimize_points(
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
-    Ok((gx, cx, loss_curve, if solves > 0 { cg as f32 / solves as f32 } else { 0.0 }))
+    Ok((gx, cx, loss_curve, (cg, solves)))
 }
 
 /// Makes strands simulation-ready: each root on the closest scalp point (within 5 cm), optionally
