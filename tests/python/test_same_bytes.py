@@ -11,7 +11,10 @@ digests were recorded again when DR's conjugate-gradient solve began to sum its 
 strands, the strands laid out in a spatial order (commit c6c059c: the same arithmetic in another order;
 undirected F1 after DR on the colours straight capture 43.51 · 66.65 · 74.68 before, 43.47 · 66.70 · 74.71
 after), and again when DR began to move every other point by default (``DrOptions::stride`` 2; with
-``--dr-stride 1`` the code of that change still wrote the earlier digests ``1ab9bf05…`` and ``21ccc46a…``).
+``--dr-stride 1`` the code of that change still wrote the earlier digests ``1ab9bf05…`` and ``21ccc46a…``),
+and again when DR's guide stage began to run on every fourth point at half the image size by default
+(``guide_stride`` 4, ``guide_downsample`` 2; with ``--dr-guide-stride 2 --dr-guide-downsample 1`` the
+code of that change still wrote the earlier digests ``bbfc2e56…`` and ``5a9ad161…``).
 
 The renderer of that commit wrote the cameras through its own Blender-to-OpenCV conversion, in
 Blender's float32; the renderer now writes them through the add-on's one conversion, which differs in
@@ -40,8 +43,8 @@ DR_ARGS = ["--guides", "300", "--children", "3000", "--dr-iters-guides", "8", "-
 DIGESTS = {
     "init_strands.hair": "87cb568f22f973cc90a23e9b2f69dce3d1e5e4249ce59c823270f0bf12e1c0bd",
     "init_guides.hair": "645619c6422994c911822fdb21e65fc06182c5f029aa36337df0faf75ca4a26d",
-    "strands.hair": "bbfc2e56a2bb9cb33c5edcc8e923d98460ed296cc63b6c405afbd453568b0a5f",
-    "guides.hair": "5a9ad1619fcfd1c3f126778d9c5cdd4fb46b6add072aa187ff0d54b9f097df88",
+    "strands.hair": "071959f95fc12394028296732c728df0294d71019aa1446f4049f03f83d110ee",
+    "guides.hair": "f3988f611c6f815caccc3dc5af888c539aa4ed9cc8676eddc0f0b706a6c04783",
 }
 
 

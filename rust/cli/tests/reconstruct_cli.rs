@@ -93,6 +93,11 @@ fn dr_flags_reach_the_options() {
     let d = &c["dr_options"];
     assert!(c["dr"] == true && d["reparam"] == true && d["neighbor_reparam"] == true && d["guide_opt"] == true, "{c}");
     assert_eq!(d["stride"].as_u64(), Some(2), "DR moves every other point by default");
+    assert_eq!(
+        (d["guide_stride"].as_u64(), d["guide_downsample"].as_u64()),
+        (Some(4), Some(2)),
+        "the guide stage on every fourth point, at half the image size"
+    );
     assert_eq!(c["curl"], "Auto");
     assert_eq!(cfg(&["--out", "unused-out", "--print-config", "--curl", "off"])["curl"], "Off");
     let fixed = &cfg(&["--out", "unused-out", "--print-config", "--curl", "6.5,22,-1"])["curl"]["Fixed"];

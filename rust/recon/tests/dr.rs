@@ -161,8 +161,11 @@ fn opts() -> DrOptions {
         width_m: 0.001,
         views_per_step: 4,
         seed: 5,
-        // these strands have a point every ~6 mm, not the init's ~1.6 mm: DR moves every one
+        // these strands have a point every ~6 mm, not the init's ~1.6 mm: DR moves every one, and
+        // the 160 px views are small: the guide stage at full size
         stride: 1,
+        guide_stride: 0,
+        guide_downsample: 1,
         ..Default::default()
     }
 }

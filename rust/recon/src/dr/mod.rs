@@ -325,8 +325,8 @@ impl Default for DrOptions {
             curvature_relative: false,
             cg_tolerance: 1e-3,
             stride: 2,
-            guide_downsample: 1,
-            guide_stride: 0,
+            guide_downsample: 2,
+            guide_stride: 4,
             weights: LossWeights::default(),
             seed: 0,
         }
