@@ -445,8 +445,8 @@ pub fn optimize(
 /// the children's, the loss curve and the conjugate-gradient iterations and solves.
 type Optimized = (Vec<Vec3>, Vec<Vec3>, Vec<LossRecord>, (usize, usize));
 
-/// Which stages [`optimize_points`] runs, and where their steps fall among all of DR's (for the
-/// progress fraction).
+/// Which stages [`optimize_points`] runs (`guides`: [`optimize`] decided the guide stage runs), and
+/// where their steps fall among all of DR's (for the progress fraction).
 #[derive(Debug, Clone, Copy)]
 struct Steps {
     guides: bool,
@@ -466,7 +466,7 @@ fn optimize_points(
 ) -> Result<Optimized, DrError> {
     let mut gx = guides.points().to_vec();
     let mut cx = children.points().to_vec();
-    let guide_stage = steps.guides && opts.guide_opt && opts.iterations_guides > 0 && !guides.is_empty();
+    let guide_stage = steps.guides;
     let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
     let child_steps = if children.is_empty() || !steps.children { 0 } else { opts.iterations_children };
     let steps_total = steps.total;
