@@ -22,6 +22,9 @@ use rustc_hash::FxHashMap;
 use thiserror::Error;
 
 mod folds;
+mod ray;
+
+pub use ray::ray_triangle;
 
 /// Why a mesh could not be built.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -326,41 +329,6 @@ impl Bvh {
         e.into_iter().map(|(a, b)| (self.mesh.vertices[a as usize], self.mesh.vertices[b as usize])).collect()
     }
 
-    /// The first hit of the ray `origin + t * dir` with `t_min < t < t_max`, if any.
-    pub fn ray_cast(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
-        if !(origin.is_finite() && dir.is_finite()) || dir == Vec3::ZERO {
-            return None; // a NaN ray would pass every box test: it hits nothing
-        }
-        let inv = Vec3::ONE / dir;
-        let mut best: Option<RayHit> = None;
-        let mut t_best = t_max;
-        let mut stack = [0u32; 64];
-        let mut sp = 1usize;
-        while sp > 0 {
-            sp -= 1;
-            let node = self.nodes[stack[sp] as usize];
-            if !slab_hit(origin, inv, node.lo, node.hi, t_min, t_best) {
-                continue;
-            }
-            if node.count > 0 {
-                for &ti in &self.order[node.start as usize..(node.start + node.count) as usize] {
-                    let [a, b, c] = self.mesh.corners(ti as usize);
-                    if let Some((t, u, v)) = ray_triangle(origin, dir, a, b, c) {
-                        if t > t_min && t < t_best {
-                            t_best = t;
-                            best = Some(RayHit { t, triangle: ti, u, v });
-                        }
-                    }
-                }
-            } else if sp + 2 <= stack.len() {
-                stack[sp] = node.start;
-                stack[sp + 1] = node.start + 1;
-                sp += 2;
-            }
-        }
-        best
-    }
-
     /// The closest point of the mesh to `p` within `max_dist` (use `f32::INFINITY` for no limit).
     pub fn closest_point(&self, p: Vec3, max_dist: f32) -> Option<ClosestPoint> {
         let mut best: Option<ClosestPoint> = None;
@@ -471,40 +439,6 @@ impl Bvh {
         let t = self.mesh.triangles[triangle as usize];
         values[t[0] as usize] * bary.x + values[t[1] as usize] * bary.y + values[t[2] as usize] * bary.z
     }
-}
-
-#[inline]
-fn slab_hit(o: Vec3, inv: Vec3, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> bool {
-    let t0 = (lo - o) * inv;
-    let t1 = (hi - o) * inv;
-    let tn = t0.min(t1).max_element().max(t_min);
-    let tf = t0.max(t1).min_element().min(t_max);
-    // NaN (0 * inf) comparisons fall through to "hit", which is conservative.
-    tn.is_nan() || tf.is_nan() || tn <= tf
-}
-
-/// Möller–Trumbore ray/triangle intersection, both faces. Returns (t, u, v).
-#[inline]
-pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, f32, f32)> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let pv = d.cross(e2);
-    let det = e1.dot(pv);
-    if det.abs() < 1e-20 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let tv = o - a;
-    let u = tv.dot(pv) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let qv = tv.cross(e1);
-    let v = d.dot(qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    Some((e2.dot(qv) * inv, u, v))
 }
 
 /// Closest point on triangle `abc` to `p` (Ericson §5.1.5). Returns the point and its barycentric

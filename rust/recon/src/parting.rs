@@ -180,7 +180,7 @@ fn seen_as_skin(samples: &[Root], cam: &Camera, mask: &[f32], head: &Bvh, params
             if x < r || y < r || x + r >= w || y + r >= h {
                 return false;
             }
-            if head.ray_cast(s.position + s.normal * 0.001, dir, 0.0, dist).is_some() {
+            if head.occluded(s.position + s.normal * 0.001, dir, 0.0, dist) {
                 return false;
             }
             (y - r..=y + r).all(|yy| (x - r..=x + r).all(|xx| mask[(yy * w + xx) as usize] < params.mask_threshold))

@@ -134,18 +134,54 @@ impl MvsView<'_> {
     /// Projects the line through `p` along `d` into this view and compares it with the orientation
     /// map (nearest pixel) at the projection of `p`.
     fn see_line(&self, p: Vec3, d: Vec3) -> Seen {
+        self.look(p).see(d)
+    }
+
+    /// What this view knows of the point `p`, for judging lines through it ([`Look::see`]).
+    fn look(&self, p: Vec3) -> Look {
         let pc = self.camera.to_camera(p);
         if pc.z <= 1e-6 {
-            return Seen::Behind;
+            return Look::Behind;
         }
         let pix = self.camera.camera_to_pixel(pc);
-        let (th, c) = self.map.sample(pix.x, pix.y);
-        if c <= 0.0 {
-            return Seen::OffHair;
+        let (th, confidence) = self.map.sample(pix.x, pix.y);
+        if confidence <= 0.0 {
+            return Look::OffHair;
         }
         let [a, b] = self.camera.camera_jacobian(pc);
-        let a2 = Vec2::new(a.dot(d), b.dot(d));
-        Seen::Hair { confidence: c, sin2: sin2(a2, th) }
+        let (sin, cos) = th.sin_cos();
+        Look::Hair { confidence, sin, cos, a, b }
+    }
+}
+
+/// One view's look at a point: what [`MvsView::see_line`] needs of the point, computed once for
+/// the many directions the search tries through it.
+#[derive(Debug, Clone, Copy)]
+enum Look {
+    Behind,
+    OffHair,
+    /// The map's confidence, the sine and cosine of its angle, and the rows of the projection's
+    /// Jacobian at the point.
+    Hair {
+        confidence: f32,
+        sin: f32,
+        cos: f32,
+        a: Vec3,
+        b: Vec3,
+    },
+}
+
+impl Look {
+    /// How the line through the point along `d` looks.
+    #[inline]
+    fn see(&self, d: Vec3) -> Seen {
+        match *self {
+            Look::Behind => Seen::Behind,
+            Look::OffHair => Seen::OffHair,
+            Look::Hair { confidence, sin, cos, a, b } => {
+                Seen::Hair { confidence, sin2: sin2(Vec2::new(a.dot(d), b.dot(d)), sin, cos) }
+            }
+        }
     }
 }
 
@@ -225,10 +261,10 @@ pub fn neighbour_views(cameras: &[&Camera], centre: Vec3, k: usize, max_angle_de
         .collect()
 }
 
-/// sin² of the angle between a projected 2D direction `a` and the image angle `theta`.
+/// sin² of the angle between a projected 2D direction `a` and the image angle whose sine and
+/// cosine are `s` and `c`.
 #[inline]
-fn sin2(a: Vec2, theta: f32) -> f32 {
-    let (s, c) = theta.sin_cos();
+fn sin2(a: Vec2, s: f32, c: f32) -> f32 {
     let l2 = a.length_squared();
     if l2 <= 1e-20 {
         return 1.0;
@@ -301,9 +337,20 @@ const OFF_HAIR_WEIGHT: f32 = 0.3;
 /// angle to the views' orientation maps, a view where it falls outside the hair counting
 /// [`OFF_HAIR_WEIGHT`]; 1 when no view judges it.
 fn line_cost(views: &[MvsView], judges: impl Iterator<Item = usize>, p: Vec3, d: Vec3) -> f32 {
+    cost_of(judges.map(|j| views[j].see_line(p, d)))
+}
+
+/// [`line_cost`] from the judges' looks at the line's point.
+fn looks_cost(looks: &[Look], d: Vec3) -> f32 {
+    cost_of(looks.iter().map(|l| l.see(d)))
+}
+
+/// The confidence-weighted mean sin² of what the judges see (see [`line_cost`]).
+#[inline]
+fn cost_of(seen: impl Iterator<Item = Seen>) -> f32 {
     let (mut sum, mut wsum) = (0.0f32, 0.0f32);
-    for j in judges {
-        match views[j].see_line(p, d) {
+    for s in seen {
+        match s {
             Seen::Behind => {}
             Seen::OffHair => {
                 sum += OFF_HAIR_WEIGHT;
@@ -398,7 +445,14 @@ pub fn estimate(
         let s = params.stride.max(1);
         let (gw, gh) = (w.div_ceil(s), h.div_ceil(s));
         let nb = &nbrs[vi];
-        let line_of = |c: &Cell, t: f32, phi: f32| -> f32 { line_cost(views, c.vis(), o + c.ray * t, c.dir(phi)) };
+        // The visible neighbours' looks at the point at depth `t` of the cell's ray.
+        let looks_at = |c: &Cell, t: f32| -> [Look; MAX_VIS] {
+            let mut looks = [Look::Behind; MAX_VIS];
+            for (l, j) in looks.iter_mut().zip(c.vis()) {
+                *l = views[j].look(o + c.ray * t);
+            }
+            looks
+        };
         // 1. Per-pixel search, on a grid of the reference pixels (None: skipped).
         let grid: Vec<Option<Cell>> = (0..gw * gh)
             .into_par_iter()
@@ -427,7 +481,7 @@ pub fn estimate(
                     let dj = x0 - oj;
                     let dist = dj.length();
                     let dj = dj / dist;
-                    let occluded = raw.ray_cast(oj, dj, 0.0, dist - params.visibility_margin).is_some();
+                    let occluded = raw.occluded(oj, dj, 0.0, dist - params.visibility_margin);
                     if !occluded {
                         vis[nvis] = j as u16;
                         nvis += 1;
@@ -447,10 +501,12 @@ pub fn estimate(
                 }
                 let mut c = Cell { ray, e1, vis, nvis: nvis as u8, t: hit.t, phi: 0.0 };
                 // 1a. The direction at the prior depth (the orientation cost barely depends on depth).
+                let nv = c.nvis as usize;
+                let mut looks = looks_at(&c, hit.t);
                 let mut best = (f32::INFINITY, hit.t, 0.0f32);
                 for k in 0..steps {
                     let phi = -std::f32::consts::FRAC_PI_2 + (k as f32 + 0.5) * std::f32::consts::PI / steps as f32;
-                    let cst = line_of(&c, hit.t, phi);
+                    let cst = looks_cost(&looks[..nv], c.dir(phi));
                     if cst < best.0 {
                         best = (cst, hit.t, phi);
                     }
@@ -470,13 +526,16 @@ pub fn estimate(
                             best_t = t;
                         }
                     }
-                    best = (line_of(&c, best_t, phi), best_t, phi);
+                    if best_t != hit.t {
+                        looks = looks_at(&c, best_t);
+                    }
+                    best = (looks_cost(&looks[..nv], c.dir(phi)), best_t, phi);
                 }
                 // 1c. Local refinement of φ.
                 let mut dphi = 0.5 * std::f32::consts::PI / steps as f32;
                 for _ in 0..4 {
                     for a in [dphi, -dphi] {
-                        let cst = line_of(&c, best.1, best.2 + a);
+                        let cst = looks_cost(&looks[..nv], c.dir(best.2 + a));
                         if cst < best.0 {
                             best = (cst, best.1, best.2 + a);
                         }

@@ -104,7 +104,7 @@ impl Target for Bvh {
 
     #[inline]
     fn crosses(&self, p: DVec3, dir: DVec3, reach: f64) -> bool {
-        self.ray_cast(p.as_vec3(), dir.as_vec3(), 0.0, reach as f32).is_some()
+        self.occluded(p.as_vec3(), dir.as_vec3(), 0.0, reach as f32)
     }
 }
 
