@@ -222,6 +222,11 @@ impl VisualHull {
 
     /// In how many views `p` is seen where neither hair nor the head in front of it is.
     pub fn views_outside(&self, p: Vec3) -> u32 {
+        self.views_outside_up_to(p, u32::MAX)
+    }
+
+    /// [`VisualHull::views_outside`], counting no further than `enough`.
+    fn views_outside_up_to(&self, p: Vec3, enough: u32) -> u32 {
         let mut n = 0;
         for v in &self.views {
             let Some(pr) = v.camera.project(p) else { continue };
@@ -230,6 +235,9 @@ impl VisualHull {
                 continue;
             }
             n += 1;
+            if n >= enough {
+                break;
+            }
         }
         n
     }
@@ -248,7 +256,7 @@ impl VisualHull {
                 (1..s.len())
                     .find(|&j| {
                         arc += s[j].distance(s[j - 1]);
-                        self.views_outside(s[j]) >= min_views
+                        self.views_outside_up_to(s[j], min_views) >= min_views
                             && !(arc < self.params.root_grace && self.near_scalp(s[j]))
                     })
                     .unwrap_or(s.len())
@@ -289,7 +297,9 @@ impl VisualHull {
 
 /// The pixel `(x, y)` holding `px`, if inside the image.
 fn pixel(camera: &Camera, px: Vec2) -> Option<(usize, usize)> {
-    let (x, y) = (px.x.floor(), px.y.floor());
+    // The tests on `px` itself answer as they would on its floor (the bounds are whole numbers),
+    // and `as usize` floors what passes them: no call to `floorf`, which the trim made millions of.
+    let (x, y) = (px.x, px.y);
     if x < 0.0 || y < 0.0 || x >= camera.width() as f32 || y >= camera.height() as f32 {
         return None;
     }

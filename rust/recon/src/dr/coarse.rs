@@ -5,7 +5,7 @@
 //! DR's time and memory follow the kept points.
 
 use glam::Vec3;
-use hairrecon_core::StrandSet;
+use hairrecon_core::{StrandError, StrandSet};
 use rayon::prelude::*;
 
 /// The dense index of coarse point `j` of a strand of `n` points thinned by `k`.
@@ -37,37 +37,40 @@ pub fn thin(strands: &StrandSet, k: usize) -> StrandSet {
     StrandSet::new(points, counts).expect("a thinned strand keeps at least its root")
 }
 
-/// The dense strands moved as their thinned points moved from `before` to `after` (both laid out as
-/// [`thin`]`(dense, k)`): a kept point becomes its coarse point, a point between two kept ones by
-/// the linear blend of their moves (by index, which is arc length on evenly spaced strands).
-pub fn lift(dense: &StrandSet, k: usize, before: &[Vec3], after: &[Vec3]) -> Vec<Vec3> {
+/// The dense strands moved as their thinned points moved to `after` (laid out as
+/// [`thin`]`(dense, k)`): a kept point becomes its coarse point, a point between two kept ones
+/// moves by the linear blend of their moves (by index, which is arc length on evenly spaced
+/// strands). In place: DR's sets are large (50,000 children of ~250 points: 150 MB). Fails when a
+/// moved point is not finite.
+pub fn lift(dense: StrandSet, k: usize, after: &[Vec3]) -> Result<StrandSet, StrandError> {
     let k = k.max(1);
+    let offsets = dense.offsets().to_vec();
     let mut coarse_offsets = Vec::with_capacity(dense.num_strands() + 1);
     coarse_offsets.push(0usize);
-    for i in 0..dense.num_strands() {
-        coarse_offsets.push(coarse_offsets[i] + kept_count(dense.strand(i).len(), k));
+    for w in offsets.windows(2) {
+        coarse_offsets.push(coarse_offsets.last().unwrap() + kept_count(w[1] - w[0], k));
     }
-    assert_eq!(before.len(), coarse_offsets[dense.num_strands()], "`before` is not thinned from `dense`");
-    assert_eq!(after.len(), before.len(), "`before` and `after` differ in length");
-    let mut out = dense.points().to_vec();
-    super::strands_mut(&mut out, dense.offsets()).into_par_iter().enumerate().for_each(|(i, s)| {
-        let c0 = coarse_offsets[i];
-        let n = s.len();
-        let moved = |j: usize| after[c0 + j] - before[c0 + j];
-        for (d, p) in s.iter_mut().enumerate() {
-            let j = d / k;
+    assert_eq!(after.len(), *coarse_offsets.last().unwrap(), "`after` is not thinned from `dense`");
+    let (mut points, counts) = dense.into_parts();
+    super::strands_mut(&mut points, &offsets).into_par_iter().enumerate().for_each(|(i, s)| {
+        let (c0, n) = (coarse_offsets[i], s.len());
+        let m = kept_count(n, k);
+        // From the tip to the root: each span's far end has moved already, so its move is carried
+        // from the span before; its near end is still where it was.
+        let mut moved_far = after[c0 + m - 1] - s[n - 1];
+        s[n - 1] = after[c0 + m - 1];
+        for j in (0..m - 1).rev() {
             let (a, b) = (kept(j, k, n), kept(j + 1, k, n));
-            if a == d {
-                *p = after[c0 + j];
-            } else if b == d {
-                *p = after[c0 + j + 1];
-            } else {
+            let moved_near = after[c0 + j] - s[a];
+            for (d, p) in s.iter_mut().enumerate().take(b).skip(a + 1) {
                 let t = (d - a) as f32 / (b - a) as f32;
-                *p += moved(j) * (1.0 - t) + moved(j + 1) * t;
+                *p += moved_near * (1.0 - t) + moved_far * t;
             }
+            s[a] = after[c0 + j];
+            moved_far = moved_near;
         }
     });
-    out
+    StrandSet::new(points, counts)
 }
 
 #[cfg(test)]
@@ -99,6 +102,10 @@ mod tests {
         }
     }
 
+    fn after_all(s: &StrandSet) -> Vec<Vec3> {
+        s.points().iter().map(|p| *p + Vec3::new(1.0, -2.0, 0.5)).collect()
+    }
+
     #[test]
     fn lifting_moves_kept_points_exactly_and_blends_between() {
         let s = strands(&[8, 2, 5]);
@@ -108,17 +115,21 @@ mod tests {
         for (j, p) in after[..4].iter_mut().enumerate() {
             p.x += 3.0 * j as f32;
         }
-        let lifted = lift(&s, 3, before.points(), &after);
+        let lifted = lift(s.clone(), 3, &after).unwrap();
+        let lifted = lifted.points();
         let dx: Vec<f32> = (0..8).map(|d| lifted[d].x - s.points()[d].x).collect();
         assert_eq!(dx, vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 9.0]);
         assert_eq!(&lifted[8..], &s.points()[8..]);
         // a strand of 5 keeps 0, 3, 4: its point 1 moves by 2/3 of point 0's move and 1/3 of point 3's
         let mut after = before.points().to_vec();
         after[7].z += 3.0; // strand 2's coarse point 1 (dense 3)
-        let lifted = lift(&s, 3, before.points(), &after);
-        let dz: Vec<f32> = (10..15).map(|d| lifted[d].z - s.points()[d].z).collect();
+        let lifted = lift(s.clone(), 3, &after).unwrap();
+        let dz: Vec<f32> = (10..15).map(|d| lifted.points()[d].z - s.points()[d].z).collect();
         assert_eq!(dz, vec![0.0, 1.0, 2.0, 3.0, 0.0]);
         // every move of the coarse strands is a move of the dense ones at the kept points
-        assert_eq!(thin(&StrandSet::new(lifted, s.counts().to_vec()).unwrap(), 3).points(), &after[..]);
+        assert_eq!(thin(&lifted, 3).points(), &after[..]);
+        assert_eq!(lifted.counts(), s.counts());
+        // at stride 1 every point is kept
+        assert_eq!(lift(s.clone(), 1, &after_all(&s)).unwrap().points(), &after_all(&s)[..]);
     }
 }

@@ -406,33 +406,30 @@ pub fn optimize(
     let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
     let child_steps = if children.is_empty() { 0 } else { opts.iterations_children };
     let all = Steps { guides: guide_stage, children: true, before: 0, total: guide_steps + child_steps };
-    let (gx, cx, loss_curve, cg) = if k == 1 && kg == 1 {
-        optimize_points(&guides, &children, targets, head, opts, progress, all)?
+    let lift = |dense: StrandSet, k: usize, thinned: StrandSet| {
+        coarse::lift(dense, k, thinned.points()).map_err(|_| DrError::Diverged(0))
+    };
+    let (g, c, loss_curve, cg) = if k == 1 && kg == 1 {
+        optimize_points(guides, children, targets, head, opts, progress, all)?
     } else if kg == k || !guide_stage {
         let (g, c) = (coarse::thin(&guides, k), coarse::thin(&children, k));
-        let (gx, cx, curve, cg) = optimize_points(&g, &c, targets, head, opts, progress, all)?;
-        (coarse::lift(&guides, k, g.points(), &gx), coarse::lift(&children, k, c.points(), &cx), curve, cg)
+        let (g, c, curve, cg) = optimize_points(g, c, targets, head, opts, progress, all)?;
+        (lift(guides, k, g)?, lift(children, k, c)?, curve, cg)
     } else {
         // The guide stage on strands thinned by `kg`, the child stage on its children thinned by `k`.
         let (g, c) = (coarse::thin(&guides, kg), coarse::thin(&children, kg));
         let first = Steps { children: false, ..all };
-        let (gx, cx, mut curve, cg1) = optimize_points(&g, &c, targets, head, opts, progress, first)?;
-        let gx = coarse::lift(&guides, kg, g.points(), &gx);
-        let mid = StrandSet::new(coarse::lift(&children, kg, c.points(), &cx), children.counts().to_vec())
-            .map_err(|_| DrError::Diverged(0))?;
-        drop(c);
+        let (g, c, mut curve, cg1) = optimize_points(g, c, targets, head, opts, progress, first)?;
+        let (guides, mid) = (lift(guides, kg, g)?, lift(children, kg, c)?);
         let c = coarse::thin(&mid, k);
         let second = Steps { guides: false, before: guide_steps, ..all };
-        let (_, cx, curve2, cg2) = optimize_points(&StrandSet::empty(), &c, targets, head, opts, progress, second)?;
+        let (_, c, curve2, cg2) = optimize_points(StrandSet::empty(), c, targets, head, opts, progress, second)?;
         curve.extend(curve2);
-        (gx, coarse::lift(&mid, k, c.points(), &cx), curve, (cg1.0 + cg2.0, cg1.1 + cg2.1))
+        (guides, lift(mid, k, c)?, curve, (cg1.0 + cg2.0, cg1.1 + cg2.1))
     };
     let mean_cg_iterations = if cg.1 > 0 { cg.0 as f32 / cg.1 as f32 } else { 0.0 };
     progress.check()?;
     progress.update("dr", 1.0, "finalizing");
-    let build = |p: Vec<Vec3>, s: &StrandSet| StrandSet::new(p, s.counts().to_vec()).map_err(|_| DrError::Diverged(0));
-    let g = build(gx, &guides)?;
-    let c = build(cx, &children)?;
     Ok(DrResult {
         guides: finalize(&g, scalp, head, opts.head_clearance, opts.equalize_at_end),
         children: finalize(&c, scalp, head, opts.head_clearance, opts.equalize_at_end),
@@ -441,9 +438,9 @@ pub fn optimize(
     })
 }
 
-/// The points of [`optimize`]'s steps on strands whose roots are already on the scalp: the guides',
-/// the children's, the loss curve and the conjugate-gradient iterations and solves.
-type Optimized = (Vec<Vec3>, Vec<Vec3>, Vec<LossRecord>, (usize, usize));
+/// [`optimize`]'s steps on strands whose roots are already on the scalp: the guides and the
+/// children moved, the loss curve and the conjugate-gradient iterations and solves.
+type Optimized = (StrandSet, StrandSet, Vec<LossRecord>, (usize, usize));
 
 /// Which stages [`optimize_points`] runs (`guides`: [`optimize`] decided the guide stage runs), and
 /// where their steps fall among all of DR's (for the progress fraction).
@@ -456,19 +453,22 @@ struct Steps {
 }
 
 fn optimize_points(
-    guides: &StrandSet,
-    children: &StrandSet,
+    guides: StrandSet,
+    children: StrandSet,
     targets: &DrTargets,
     head: Option<&Bvh>,
     opts: &DrOptions,
     progress: &dyn Progress,
     steps: Steps,
 ) -> Result<Optimized, DrError> {
-    let mut gx = guides.points().to_vec();
-    let mut cx = children.points().to_vec();
     let guide_stage = steps.guides;
+    // With children, the guide stage renders them in place of the guides (a fixed linear map).
+    let mut map = (guide_stage && !children.is_empty()).then(|| ChildMap::new(&guides, &children, &opts.child_blend));
+    let (g_offsets, c_offsets) = (guides.offsets().to_vec(), children.offsets().to_vec());
+    let (mut gx, g_counts) = guides.into_parts();
+    let (mut cx, c_counts) = children.into_parts();
     let guide_steps = if guide_stage { opts.iterations_guides } else { 0 };
-    let child_steps = if children.is_empty() || !steps.children { 0 } else { opts.iterations_children };
+    let child_steps = if c_counts.is_empty() || !steps.children { 0 } else { opts.iterations_children };
     let steps_total = steps.total;
     let mut loss_curve = Vec::with_capacity(guide_steps + child_steps);
     let (mut cg, mut solves) = (0usize, 0usize);
@@ -481,13 +481,11 @@ fn optimize_points(
                 &coarse_targets
             }
         };
-        // With children, the guide stage renders them in place of the guides (a fixed linear map).
-        let mut map = if children.is_empty() { None } else { Some(ChildMap::new(guides, children, &opts.child_blend)) };
         let stats = run_stage(
             StageInput {
                 stage: DrStage::Guides,
                 x: &mut gx,
-                offsets: guides.offsets(),
+                offsets: &g_offsets,
                 map: map.as_mut(),
                 iterations: guide_steps,
                 steps_before: steps.before,
@@ -502,8 +500,7 @@ fn optimize_points(
         if let Some(map) = &map {
             map.forward(&gx, &mut cx);
             if let Some(h) = head {
-                let offs = children.offsets();
-                let is_root = |i: usize| offs.binary_search(&i).is_ok();
+                let is_root = |i: usize| c_offsets.binary_search(&i).is_ok();
                 cx.par_iter_mut().enumerate().for_each(|(i, p)| {
                     if !is_root(i) {
                         *p = push_out_of_head(h, *p, opts.head_clearance);
@@ -514,12 +511,13 @@ fn optimize_points(
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
+    drop(map);
     if child_steps > 0 {
         let stats = run_stage(
             StageInput {
                 stage: DrStage::Children,
                 x: &mut cx,
-                offsets: children.offsets(),
+                offsets: &c_offsets,
                 map: None,
                 iterations: child_steps,
                 steps_before: steps.before + guide_steps,
@@ -534,7 +532,8 @@ fn optimize_points(
         cg += stats.cg_iterations;
         solves += stats.solves;
     }
-    Ok((gx, cx, loss_curve, (cg, solves)))
+    let build = |p: Vec<Vec3>, counts: Vec<u32>| StrandSet::new(p, counts).map_err(|_| DrError::Diverged(0));
+    Ok((build(gx, g_counts)?, build(cx, c_counts)?, loss_curve, (cg, solves)))
 }
 
 /// Makes strands simulation-ready: each root on the closest scalp point (within 5 cm), optionally
