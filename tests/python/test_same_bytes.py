@@ -14,7 +14,10 @@ after), and again when DR began to move every other point by default (``DrOption
 ``--dr-stride 1`` the code of that change still wrote the earlier digests ``1ab9bf05…`` and ``21ccc46a…``),
 and again when DR's guide stage began to run on every fourth point at half the image size by default
 (``guide_stride`` 4, ``guide_downsample`` 2; with ``--dr-guide-stride 2 --dr-guide-downsample 1`` the
-code of that change still wrote the earlier digests ``bbfc2e56…`` and ``5a9ad161…``).
+code of that change still wrote the earlier digests ``bbfc2e56…`` and ``5a9ad161…``), and again when
+the child stage began to move every third point and the solves to stop at a relative residual of 1e-2
+(``stride`` 3, ``cg_tolerance`` 1e-2; replayed with ``stride`` 2 and ``cg_tolerance`` 1e-3 in its
+config, the code of that change still wrote the earlier digests ``071959f9…`` and ``f3988f61…``).
 
 The renderer of that commit wrote the cameras through its own Blender-to-OpenCV conversion, in
 Blender's float32; the renderer now writes them through the add-on's one conversion, which differs in
@@ -43,8 +46,8 @@ DR_ARGS = ["--guides", "300", "--children", "3000", "--dr-iters-guides", "8", "-
 DIGESTS = {
     "init_strands.hair": "87cb568f22f973cc90a23e9b2f69dce3d1e5e4249ce59c823270f0bf12e1c0bd",
     "init_guides.hair": "645619c6422994c911822fdb21e65fc06182c5f029aa36337df0faf75ca4a26d",
-    "strands.hair": "071959f95fc12394028296732c728df0294d71019aa1446f4049f03f83d110ee",
-    "guides.hair": "f3988f611c6f815caccc3dc5af888c539aa4ed9cc8676eddc0f0b706a6c04783",
+    "strands.hair": "134b49eb4e936354257a572f2245f4dee84b251cdc4e3ab4f8e8866e4ce85dc8",
+    "guides.hair": "bf76334719282129d2c5944bb1d4ceeb05d2b228e8501377f3a397cd89c0903c",
 }
 
 

@@ -92,7 +92,8 @@ fn dr_flags_reach_the_options() {
     let c = cfg(&["--out", "unused-out", "--print-config"]);
     let d = &c["dr_options"];
     assert!(c["dr"] == true && d["reparam"] == true && d["neighbor_reparam"] == true && d["guide_opt"] == true, "{c}");
-    assert_eq!(d["stride"].as_u64(), Some(2), "DR moves every other point by default");
+    assert_eq!(d["stride"].as_u64(), Some(3), "DR moves every third point by default");
+    assert_eq!(d["cg_tolerance"].as_f64().map(|t| t as f32), Some(1e-2), "the solves stop at 1e-2");
     assert_eq!(
         (d["guide_stride"].as_u64(), d["guide_downsample"].as_u64()),
         (Some(4), Some(2)),

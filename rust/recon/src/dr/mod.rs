@@ -270,14 +270,21 @@ pub struct DrOptions {
     /// change penalized) instead of against straight strands.
     pub curvature_relative: bool,
     /// Relative residual at which the conjugate-gradient solves of the reparameterization stop.
+    /// The solves are warm-started from the last step's solution, and a looser tolerance leaves a
+    /// small error in a step that the next steps correct. 1e-3 → 1e-2 at commit c1bc034 (DR alone
+    /// on the paper preset's inits, stride 2): CG iterations per solve 10.0 → 6.5 and a child step
+    /// 7.3 → 6.2 s on the straight capture; undirected F1 at 1 · 2 · 3 mm on the curly capture
+    /// 19.3 · 75.3 · 93.5 → 19.3 · 75.2 · 93.5 (docs/reconstruction.md).
     pub cg_tolerance: f32,
     /// The steps move every `stride`-th point of each strand (and its tip); the points between
     /// follow the two around them ([`coarse`]). 1: every point. The init's strands have a point
     /// every ~1.6 mm, and DR's time and memory follow the points it moves. DR alone on the colours
     /// preset's inits (60 + 20 steps; undirected F1 at 1 · 2 · 3 mm, peak memory), stride 1 → 2:
     /// straight 63.3 · 88.2 · 95.3, 4.05 GiB → 63.9 · 88.7 · 95.5, 2.27 GiB; curly 18.9 · 73.5 · 92.6
-    /// at 2 (docs/reconstruction.md). A configuration without it (a run's from before it) replays
-    /// at 1.
+    /// at 2 (docs/reconstruction.md). The default 3 since commit c1bc034: on the paper preset's
+    /// inits (DR alone, guide stage at stride 4) straight 72.0 · 91.6 · 96.3 at 2 and at 3, curly
+    /// 19.3 · 75.3 · 93.5 → 19.3 · 75.2 · 93.5, a child step 20% shorter. A configuration without
+    /// it (a run's from before it) replays at 1.
     #[serde(default = "one")]
     pub stride: usize,
     /// The guide stage renders and compares at an image scale this many times smaller in both
@@ -326,8 +333,8 @@ impl Default for DrOptions {
             project_every: 10,
             equalize_at_end: true,
             curvature_relative: false,
-            cg_tolerance: 1e-3,
-            stride: 2,
+            cg_tolerance: 1e-2,
+            stride: 3,
             guide_downsample: 2,
             guide_stride: 4,
             weights: LossWeights::default(),
