@@ -503,6 +503,16 @@ pub fn unit_cube() -> TriMesh {
 mod tests {
     use super::*;
 
+    /// A seeded xorshift stream of numbers uniform in [−half, half].
+    pub(in crate::mesh) fn uniform(mut s: u32, half: f32) -> impl FnMut() -> f32 {
+        move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s as f32 / u32::MAX as f32) * 2.0 * half - half
+        }
+    }
+
     /// A UV sphere of radius r, outward winding.
     fn sphere(r: f32, nu: usize, nv: usize) -> TriMesh {
         let mut v = vec![Vec3::new(0.0, 0.0, r)];
@@ -539,13 +549,7 @@ mod tests {
         assert!(bvh.ray_cast(Vec3::new(0.0, 0.0, -3.0), Vec3::new(f32::NAN, 0.0, 1.0), 0.0, f32::INFINITY).is_none());
         assert!(bvh.ray_cast(Vec3::NAN, Vec3::Z, 0.0, f32::INFINITY).is_none());
         assert!(bvh.ray_cast(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, 0.0, f32::INFINITY).is_none());
-        let mut s = 12345u32;
-        let mut rnd = || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            (s as f32 / u32::MAX as f32) * 4.0 - 2.0
-        };
+        let mut rnd = uniform(12345, 2.0);
         for _ in 0..300 {
             let p = Vec3::new(rnd(), rnd(), rnd());
             let cp = bvh.closest_point(p, f32::INFINITY).unwrap();

@@ -447,9 +447,10 @@ pub fn estimate(
         let nb = &nbrs[vi];
         // The visible neighbours' looks at the point at depth `t` of the cell's ray.
         let looks_at = |c: &Cell, t: f32| -> [Look; MAX_VIS] {
+            let p = o + c.ray * t;
             let mut looks = [Look::Behind; MAX_VIS];
             for (l, j) in looks.iter_mut().zip(c.vis()) {
-                *l = views[j].look(o + c.ray * t);
+                *l = views[j].look(p);
             }
             looks
         };

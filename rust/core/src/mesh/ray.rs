@@ -150,13 +150,7 @@ mod tests {
     /// with it, for any `t` range.
     #[test]
     fn ray_queries_agree_with_brute_force_on_a_triangle_soup() {
-        let mut s = 987_654_321u32;
-        let mut rnd = || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            (s as f32 / u32::MAX as f32) * 2.0 - 1.0
-        };
+        let mut rnd = crate::mesh::tests::uniform(987_654_321, 1.0);
         let mut vertices = Vec::new();
         let mut triangles = Vec::new();
         for i in 0..400u32 {
