@@ -1,31 +1,28 @@
 """The reconstruction's bytes are pinned: a change meant to move the strands says so.
 
-``hairrecon reconstruct`` on the rendered test-preset capture (``test_capture``: straight, 2,000
-strands, seed 0, 16 views of 256 px) must write the strands and guides whose SHA-256 digests are below:
-a small whole run, the initial strands and guides (``init_*.hair``) and those after DR. (The initial
-strands' digests are this run's, recorded at commit 89e6ac1, where the digests of an earlier run of its
-own with the default options also held; that run cost half a minute of test time.) The refactor into stages behind a runner kept the bytes of the code before it (commit 5573f38); the
-digests were recorded again when the flow's outer surface became the raw mesh smoothed, with inside
-tests that vote where its faces fold (the change meant to move the strands on noisy meshes). The DR
-digests were recorded again when DR's conjugate-gradient solve began to sum its dot products per run of
-strands, the strands laid out in a spatial order (commit c6c059c: the same arithmetic in another order;
-undirected F1 after DR on the colours straight capture 43.51 · 66.65 · 74.68 before, 43.47 · 66.70 · 74.71
-after), and again when DR began to move every other point by default (``DrOptions::stride`` 2; with
-``--dr-stride 1`` the code of that change still wrote the earlier digests ``1ab9bf05…`` and ``21ccc46a…``),
-and again when DR's guide stage began to run on every fourth point at half the image size by default
-(``guide_stride`` 4, ``guide_downsample`` 2; with ``--dr-guide-stride 2 --dr-guide-downsample 1`` the
-code of that change still wrote the earlier digests ``bbfc2e56…`` and ``5a9ad161…``), and again when
-the child stage began to move every third point and the solves to stop at a relative residual of 1e-2
-(``stride`` 3, ``cg_tolerance`` 1e-2; replayed with ``stride`` 2 and ``cg_tolerance`` 1e-3 in its
-config, the code of that change still wrote the earlier digests ``071959f9…`` and ``f3988f61…``).
-
-The renderer of that commit wrote the cameras through its own Blender-to-OpenCV conversion, in
-Blender's float32; the renderer now writes them through the add-on's one conversion, which differs in
-the last bit of some entries. The images, masks and depth maps are the same values. So the test puts
-that commit's cameras (``data/test_preset_cameras_5573f38.json``) back into a copy of the capture and
-fuses its raw mesh again with the renderer's arguments: with them the raw mesh is the same bytes as
-that commit's, and so must the strands be. A change that moves any stage by one float changes these
+``hairrecon reconstruct`` on a small capture committed with the tests (``data/same_bytes_capture``: the
+test preset's 16 views of 256 px of straight hair, 2,000 strands, seed 0, rendered by
+``scripts/render_synthetic.py``; its photos, hair masks and fusion depth maps, the raw mesh fused from
+them here) must write the strands and guides whose SHA-256 digests are below: the initial strands and
+guides (``init_*.hair``) and those after DR. A change that moves any stage by one float changes these
 digests; a new digest is recorded only when the change in the strands is meant, and its commit says so.
+
+The inputs are files, not a render made by the test, because a render's bytes depend on the machine:
+on a CPU with AVX-512, numpy's vectorised ``power`` in the sRGB conversion rounds 4 of these 16 photos
+differently in a few pixels, and everything downstream moves. The library's own bytes do not depend on
+the machine's vector units (the same digests with glibc's AVX2 and FMA paths turned off through
+``GLIBC_TUNABLES``).
+
+History of the digests: the refactor into stages behind a runner kept the bytes of the code before it
+(commit 5573f38); they were recorded again when the flow's outer surface became the raw mesh smoothed,
+when DR's conjugate-gradient solve began to sum its dot products per run of strands (commit c6c059c),
+when DR began to move every other point (``DrOptions::stride`` 2), when its guide stage began to run on
+every fourth point at half the image size (``guide_stride`` 4, ``guide_downsample`` 2), and when the
+child stage began to move every third point with solves stopped at a relative residual of 1e-2
+(``stride`` 3, ``cg_tolerance`` 1e-2); each time the code of the change, with the old options in its
+config, still wrote the old digests. Those digests were of a render made on another machine; the
+committed capture is this machine's render of the same scene with the same cameras (the cameras of
+commit 5573f38), and its digests were recorded at the commit that added it, with no change in the code.
 """
 
 from __future__ import annotations
@@ -39,15 +36,18 @@ from pathlib import Path
 
 import pytest
 
-from conftest import hairrecon_bin
+from conftest import hairrecon_bin, head_files, straight_hair
 
-CAMERAS = Path(__file__).parent / "data" / "test_preset_cameras_5573f38.json"
+CAPTURE = Path(__file__).parent / "data" / "same_bytes_capture"
+# The renderer's fusion radius for this capture (render_info.json's fusion_radius_mm, 2.3456 mm), the
+# raw mesh's inset in `hairrecon fuse-depth` as scripts/render_synthetic.py passes it.
+FUSION_INSET_MM = "2.3456"
 DR_ARGS = ["--guides", "300", "--children", "3000", "--dr-iters-guides", "8", "--dr-iters-children", "4"]
 DIGESTS = {
-    "init_strands.hair": "87cb568f22f973cc90a23e9b2f69dce3d1e5e4249ce59c823270f0bf12e1c0bd",
-    "init_guides.hair": "645619c6422994c911822fdb21e65fc06182c5f029aa36337df0faf75ca4a26d",
-    "strands.hair": "134b49eb4e936354257a572f2245f4dee84b251cdc4e3ab4f8e8866e4ce85dc8",
-    "guides.hair": "bf76334719282129d2c5944bb1d4ceeb05d2b228e8501377f3a397cd89c0903c",
+    "init_strands.hair": "6ce64052157c9701d91def3cc5d8f00a86e317617a9f98f7f5e542b1f3491ea2",
+    "init_guides.hair": "732f3ce65107b124be51b3476ea5dd60bb375e86b30da915a872e00e23f15ec1",
+    "strands.hair": "f832fca02295cc89ee7d031a170a954a5a6e902d102d8ecc2ad4df9330840d7a",
+    "guides.hair": "fabe643aa7eacb0950676dad8b8bd6863e8d150aaa6f58f8e26f9582fb94e7b9",
 }
 
 
@@ -57,19 +57,22 @@ def run(cmd: list, env: dict | None = None) -> None:
 
 
 @pytest.fixture(scope="module")
-def old_camera_capture(test_capture, tmp_path_factory) -> Path:
-    """A copy of the test capture with commit 5573f38's cameras and its raw mesh fused again."""
+def pinned_capture(tmp_path_factory) -> Path:
+    """The committed capture with the bundled head and scalp, its ground-truth strands (the generator's,
+    which rendered it) and its raw mesh fused from its depth maps."""
     cap = tmp_path_factory.mktemp("same_bytes") / "capture"
-    shutil.copytree(test_capture, cap, ignore=shutil.ignore_patterns("scene.blend"))
+    shutil.copytree(CAPTURE, cap)
+    head, scalp = head_files()
+    shutil.copy(head, cap / "head.ply")
+    shutil.copy(scalp, cap / "scalp.ply")
+    (cap / "gt").mkdir()
+    straight_hair(hairrecon_bin(), cap / "gt", 2000, "strands.hair")
     spec = json.loads((cap / "capture.json").read_text())
-    cams = json.loads(CAMERAS.read_text())
-    assert sorted(cams) == sorted(v["name"] for v in spec["views"])
-    for v in spec["views"]:
-        v.update(cams[v["name"]])
+    assert {"head_mesh": "head.ply", "scalp_mesh": "scalp.ply", "raw_mesh": "raw_mesh.ply"}.items() <= spec.items()
+    spec["gt_strands"] = "gt/strands.hair"
     (cap / "capture.json").write_text(json.dumps(spec, indent=1))
-    inset = json.loads((cap / "render_info.json").read_text())["fusion_radius_mm"]
     run([hairrecon_bin(), "fuse-depth", cap, "--depth-dir", "fusion/depth", "--voxel-mm", "2.0",
-         "--inset-mm", f"{inset:.4f}"])
+         "--inset-mm", FUSION_INSET_MM])
     return cap
 
 
@@ -77,23 +80,22 @@ def digests(out: Path) -> dict:
     return {f: hashlib.sha256((out / f).read_bytes()).hexdigest() for f in DIGESTS}
 
 
-def test_reconstruct_writes_the_bytes_of_the_code_before_the_refactor(old_camera_capture, tmp_path):
+def test_reconstruct_writes_the_pinned_bytes(pinned_capture, tmp_path):
     out = tmp_path / "dr"
-    run([hairrecon_bin(), "reconstruct", old_camera_capture, "--out", out, *DR_ARGS])
+    run([hairrecon_bin(), "reconstruct", pinned_capture, "--out", out, *DR_ARGS])
+    assert json.loads((out / "report.json").read_text())["scores"], "the ground truth was not scored"
     assert digests(out) == DIGESTS
 
 
-def test_one_thread_and_no_ground_truth_write_the_same_bytes(old_camera_capture, tmp_path):
+def test_one_thread_and_no_ground_truth_write_the_same_bytes(pinned_capture, tmp_path):
     """Work split over threads (rayon over views, tiles and strands) never changes a result, and no stage
     reads the ground truth: the run on one thread, on a copy of the capture without its ground truth
-    (``gt/`` and the keys naming it; nothing is scored), writes the digests pinned above for the
+    (``gt/`` and the key naming it; nothing is scored), writes the digests pinned above for the
     machine's two threads with the ground truth scored."""
     cap = tmp_path / "no_gt"
-    shutil.copytree(old_camera_capture, cap, ignore=shutil.ignore_patterns("gt"))
+    shutil.copytree(pinned_capture, cap, ignore=shutil.ignore_patterns("gt"))
     spec = json.loads((cap / "capture.json").read_text())
     assert spec.pop("gt_strands")
-    for v in spec["views"]:
-        assert v.pop("gt_orientation") and v.pop("gt_depth")
     (cap / "capture.json").write_text(json.dumps(spec, indent=1))
     out = tmp_path / "one_thread"
     run([hairrecon_bin(), "reconstruct", cap, "--out", out, *DR_ARGS], env={**os.environ, "RAYON_NUM_THREADS": "1"})
