@@ -9,6 +9,7 @@ cd "$(dirname "$0")/.."
 start=$(date +%s)
 step() { echo "== $* (at $(( $(date +%s) - start )) s)"; }
 bash scripts/setup_env.sh --blender42 --tests
+# pytest keeps the temporary folders of failed tests only (a passing run leaves no 1.5 GB in /tmp);
 # the test-preset capture is rendered once and shared by both pytest runs (tests/python/conftest.py)
 HAIRRECON_TEST_CAPTURE_CACHE="$(mktemp -d)"
 export HAIRRECON_TEST_CAPTURE_CACHE
@@ -31,7 +32,7 @@ cargo test --release --workspace --exclude hairrecon-python
 step "pytest tests/python"
 export HAIRRECON_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/release/hairrecon"
 export HAIRRECON_WHEEL="$(ls "$(pwd)"/target/wheels-hairrecon/hairrecon-*.whl | head -n 1)"
-.venv/bin/python -m pytest -q --durations=12 tests/python
+.venv/bin/python -m pytest -q -o tmp_path_retention_policy=failed --durations=12 tests/python
 step "pytest tests/python/test_addon.py with Blender 4.2 (bpy 4.2, the oldest Blender the extension supports)"
-HAIRRECON_TEST_PYTHON="$(pwd)/.venv-blender42/bin/python" .venv/bin/python -m pytest -q --durations=8 tests/python/test_addon.py
+HAIRRECON_TEST_PYTHON="$(pwd)/.venv-blender42/bin/python" .venv/bin/python -m pytest -q -o tmp_path_retention_policy=failed --durations=8 tests/python/test_addon.py
 echo "== all tests passed in $(( $(date +%s) - start )) s"
