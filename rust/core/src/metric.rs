@@ -153,8 +153,8 @@ struct SearchGrid {
     /// Per block, the index of its first run (one more entry than blocks).
     first_run: Vec<u32>,
     runs: Vec<Run>,
-    pts: Vec<Vec3>,
-    tans: Vec<Vec3>,
+    /// The sorted points with their tangents, side by side (a search reads both).
+    oriented: Vec<[Vec3; 2]>,
     /// Each sorted point's index in the set.
     idx: Vec<u32>,
 }
@@ -177,8 +177,7 @@ impl SearchGrid {
             dims: [0; 3],
             first_run: vec![0],
             runs: Vec::new(),
-            pts: Vec::new(),
-            tans: Vec::new(),
+            oriented: Vec::new(),
             idx: Vec::new(),
         };
         if !(lo.is_finite() && hi.is_finite() && block_min > 0.0) {
@@ -215,10 +214,9 @@ impl SearchGrid {
         for b in 0..n_blocks {
             first_run[b + 1] += first_run[b];
         }
-        let pts = keys.iter().map(|&(_, k)| points[k as usize]).collect();
-        let tans = keys.iter().map(|&(_, k)| tangents[k as usize]).collect();
+        let oriented = keys.iter().map(|&(_, k)| [points[k as usize], tangents[k as usize]]).collect();
         let idx = keys.iter().map(|&(_, k)| k).collect();
-        Self { centres, radii, origin: lo, block, dims, first_run, runs, pts, tans, idx }
+        Self { centres, radii, origin: lo, block, dims, first_run, runs, oriented, idx }
     }
 
     /// Per threshold and direction cell, cos(θ + cell radius): below it the cell holds no match.
@@ -233,8 +231,9 @@ impl SearchGrid {
     /// Whether some point within distance² `d2` of `p` has a tangent with cosine above `cos` to `t`
     /// (looked for when `want.0`) or above `cos` in absolute value (when `want.1`); returns the
     /// `(directed, undirected)` findings and the set's index of a directed match (`u32::MAX` when
-    /// none was found). `cb[b]` is the cosine between `t` and the centre of cell `b`, `cos_lim[b]`
-    /// cos(θ + radius of cell b).
+    /// none was found). `cos_lim[b]` is cos(θ + radius of cell b): a cell whose centre's cosine to `t`
+    /// (directed) or to `±t` (undirected) lies below it holds no match, and its run is skipped (the
+    /// cosine is computed for the runs met, not for every cell).
     #[allow(clippy::too_many_arguments)]
     fn search(
         &self,
@@ -242,19 +241,11 @@ impl SearchGrid {
         t: Vec3,
         d2: f32,
         cos: f32,
-        cb: &[f32; N_BINS],
         cos_lim: &[f32; N_BINS],
         want: (bool, bool),
     ) -> (bool, bool, u32) {
         if self.runs.is_empty() {
             return (false, false, u32::MAX);
-        }
-        // The cells that may hold a directed match, and those that may hold an undirected one.
-        let (mut same, mut either) = (0u128, 0u128);
-        for b in 0..N_BINS {
-            let (s, o) = (cb[b] >= cos_lim[b], -cb[b] >= cos_lim[b]);
-            same |= (s as u128) << b;
-            either |= ((s || o) as u128) << b;
         }
         let (mut dir, mut und) = (!want.0, !want.1);
         let mut found = u32::MAX;
@@ -271,12 +262,13 @@ impl SearchGrid {
                 let row = (i * self.dims[1] + j) * self.dims[2];
                 let (r0, r1) = (self.first_run[row + lo.z as usize], self.first_run[row + hi.z as usize + 1]);
                 for run in &self.runs[r0 as usize..r1 as usize] {
-                    let mask = if dir { 0 } else { same } | if und { 0 } else { either };
-                    if (mask >> run.bin) & 1 == 0 {
+                    // Whether the run's cell may hold a directed match, or an undirected one.
+                    let (c, lim) = (self.centres[run.bin as usize].dot(t), cos_lim[run.bin as usize]);
+                    if !((!dir && c >= lim) || (!und && c.abs() >= lim)) {
                         continue;
                     }
                     let (a, z) = (run.start as usize, run.end as usize);
-                    for (k, (q, s)) in self.pts[a..z].iter().zip(&self.tans[a..z]).enumerate() {
+                    for (k, [q, s]) in self.oriented[a..z].iter().enumerate() {
                         if q.distance_squared(p) <= d2 {
                             let c = s.dot(t);
                             if !dir && c > cos {
@@ -348,14 +340,13 @@ impl OrientedPoints {
         if t == Vec3::ZERO {
             return 0;
         }
-        let cb: [f32; N_BINS] = std::array::from_fn(|b| grid.centres[b].dot(t));
         let mut mask = 0u32;
         let (mut prev_dir, mut prev_und) = (false, false);
         for (i, th) in thresholds.iter().enumerate() {
             let mut dir = monotone && prev_dir;
             let mut und = monotone && prev_und;
             if !(dir && und) {
-                let (d, u, f) = grid.search(p, t, th.dist * th.dist, cos[i], &cb, &cos_lim[i], (!dir, !und));
+                let (d, u, f) = grid.search(p, t, th.dist * th.dist, cos[i], &cos_lim[i], (!dir, !und));
                 dir |= d;
                 und |= u;
                 found[i] = f;
