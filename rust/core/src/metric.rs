@@ -264,7 +264,8 @@ impl SearchGrid {
                 for run in &self.runs[r0 as usize..r1 as usize] {
                     // Whether the run's cell may hold a directed match, or an undirected one.
                     let (c, lim) = (self.centres[run.bin as usize].dot(t), cos_lim[run.bin as usize]);
-                    if !((!dir && c >= lim) || (!und && c.abs() >= lim)) {
+                    let may_hold = (!dir && c >= lim) || (!und && c.abs() >= lim);
+                    if !may_hold {
                         continue;
                     }
                     let (a, z) = (run.start as usize, run.end as usize);
