@@ -2,13 +2,13 @@
 """The main job on the bundled default: a small synthetic head, end to end, the whole method.
 
     .venv/bin/python scripts/demo.py [--out out/demo] [--style straight] [--strands 20000] [--seed 7]
-                                     [--guides 2000] [--children 20000] [--dr-iters-guides 20] [--dr-iters-children 10]
+                                     [--guides 2000] [--children 20000] [--dr-iters-guides 20] [--dr-iters-children 6]
 
 1. generates a hairstyle on the bundled head (`hairrecon synth-hair`), the ground truth;
 2. renders it with headless Cycles into a capture folder (`scripts/render_synthetic.py --preset test --height 384`);
 3. imports the capture into a Blender scene with the extension's Import Capture operator;
 4. reconstructs the hair in that scene with the extension (`scripts/reconstruct.py`): initial strands,
-   then the strand optimization by differentiable rendering (DR, 20 + 10 steps: DR_ITERS_GUIDES below); saves the .blend with the hair
+   then the strand optimization by differentiable rendering (DR, 20 + 6 steps: DR_ITERS_GUIDES below); saves the .blend with the hair
    Curves and the strands, and renders Cycles pictures of the ground truth and of the strands before
    and after DR, all with the extension's hair material;
 5. scores the strands before and after DR against the ground truth (`hairrecon eval`).
@@ -40,15 +40,25 @@ HEIGHT = 384
 # F1 15.4 -> 15.5 at 2 mm/20° (commit 7a687b0, 1 min 42 s), with 20,000 29.3 -> 35.8 (commit dbc9a67, 4 min 58 s).
 STRANDS = 20000
 CHILDREN = 20000
-# DR steps on the guides and on every strand: a third of the library's 60 + 20. The library's schedule is set
+# DR steps on the guides and on every strand: a third of the library's 60 guide steps, and 6 of its 20 on every
+# strand. The library's schedule is set
 # for the paper preset (58 views of 512 px); on these 16 small views the longer run finds nothing more. DR alone
 # on the demo's saved init (commit cca1e7a, undirected F1 at 1 / 2 / 3 mm): 60 + 20 steps 50.7 / 82.2 / 92.1,
 # 20 + 10 steps 51.8 / 82.4 / 92.1 (init 52.4 / 81.9 / 91.4); on the colours preset's straight hair (30 views of
-# 384 px, 50,000 strands) 63.3 / 88.2 / 95.3 and 63.7 / 88.2 / 95.3.
+# 384 px, 50,000 strands) 63.3 / 88.2 / 95.3 and 63.7 / 88.2 / 95.3. On the demo's 2 mm raw mesh (below; commit
+# f5a2645, DR alone, `--from dr`): 20 + 10 steps 54.6 / 82.7 / 91.8 in 39.9 s, 20 + 6 steps 54.6 / 82.6 / 91.7 in 32.8 s,
+# 12 + 8 steps 54.3 / 82.3 / 91.5 in 27.1 s.
 DR_ITERS_GUIDES = 20
-DR_ITERS_CHILDREN = 10
-# Cycles samples of the pictures, denoised with OpenImageDenoise: 16 looks as 64 did, in less time.
-PICTURE_SAMPLES = 16
+DR_ITERS_CHILDREN = 6
+# The raw mesh's voxel (`render_synthetic.py --voxel-mm`): 2 mm, not the 1 mm it uses for photo fusion by default
+# (set for curly hair's outer curls). On the demo's straight hair 1 mm gave 3.6 million triangles, fused in 16.8 s,
+# and the library's stages took 64 s; 2 mm gave 0.76 million in 2.3 s and 50 s, undirected F1 after DR 54.6 / 82.7 /
+# 91.8 against 52.4 / 82.7 / 92.0 at 1 / 2 / 3 mm (`hairrecon reconstruct` on the demo's capture, commit 0b47109).
+VOXEL_MM = 2.0
+# Cycles samples of the pictures, denoised with OpenImageDenoise: 16 looked as 64 did, and 8 as 16; and their height
+# in pixels. A picture of the demo's strands took 8.5-9.6 s at 8 samples and 512 px, 6.7-6.8 s at 384 px (commit 0b47109).
+PICTURE_SAMPLES = 8
+PICTURE_HEIGHT = 384
 
 
 def step(n: int, title: str, cmd: list[str], **kw) -> None:
@@ -97,7 +107,7 @@ def main() -> None:
     step(2, f"render the capture with headless Cycles (test preset: 16 views, at {HEIGHT} px)",
          [PY, ROOT / "scripts" / "render_synthetic.py", out / "gt.hair", ROOT / "blend_fixtures" / "head.ply",
           out / "capture", "--scalp", ROOT / "blend_fixtures" / "scalp.ply", "--preset", "test",
-          "--height", HEIGHT, "--hairrecon-bin", bin_])
+          "--height", HEIGHT, "--voxel-mm", VOXEL_MM, "--hairrecon-bin", bin_])
     snippet = IMPORT_SNIPPET.format(scripts=str(ROOT / "scripts"), capture=str(out / "capture"),
                                     blend=str(out / "scene.blend"))
     step(3, "import the capture into a Blender scene (Import Capture)", [PY, "-c", snippet])
@@ -108,7 +118,8 @@ def main() -> None:
           "--dr-iters-guides", a.dr_iters_guides, "--dr-iters-children", a.dr_iters_children,
           "--render", out / "result" / "render.png", "--render-before", out / "result" / "render_before.png",
           "--gt-strands", out / "gt.hair", "--render-gt", out / "result" / "render_gt.png",
-          "--render-pair", out / "demo_result.png", "--render-fit", "0.85", "--render-samples", PICTURE_SAMPLES])
+          "--render-pair", out / "demo_result.png", "--render-fit", "0.85", "--render-samples", PICTURE_SAMPLES,
+          "--render-height", PICTURE_HEIGHT])
     print("\n[5/5] score the strands before and after DR against the ground truth", flush=True)
     report = []
     for title, pred in (("before DR (initial strands)", out / "result" / "result" / "init_strands.hair"),

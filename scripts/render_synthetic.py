@@ -310,6 +310,9 @@ def build_scene(bpy, a, head_path: Path, pts: np.ndarray, counts: np.ndarray):
         sc.render.threads = a.threads
     sc.view_settings.view_transform = "Standard"
     sc.render.film_transparent = False
+    # Cycles keeps the scene (its BVH over every hair segment) from one view's render to the next; only
+    # the camera changes. The same pixels, in less time (the demo's 16 views: 67.9 -> 61.3 s).
+    sc.render.use_persistent_data = True
 
     world = bpy.data.worlds.new("white")
     world.use_nodes = True
@@ -653,6 +656,7 @@ def render_capture(a) -> int:
             write_depth(out / "fusion" / "depth" / f"{name}.exr", photo_fusion_depth(g, m))
         print(f"  fusion depth maps ({a.views} views, from the photographs' depth): {time.time() - t_fusion:.1f} s")
     elif a.only_view is None:
+        sc.render.use_persistent_data = False  # the ribbons are new geometry: sync the scene afresh
         set_radius(hair.data, fr)
         sc.cycles_curves.shape = "RIBBONS"
         sc.cycles.samples = 1
