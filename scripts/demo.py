@@ -41,8 +41,8 @@ HEIGHT = 384
 STRANDS = 20000
 CHILDREN = 20000
 # DR steps on the guides and on every strand: a third of the library's 60 guide steps, and 6 of its 20 on every
-# strand. The library's schedule is set
-# for the paper preset (58 views of 512 px); on these 16 small views the longer run finds nothing more. DR alone
+# strand. The library's schedule is set for the paper preset (58 views of 512 px); on these 16 small views the
+# longer run finds nothing more. DR alone
 # on the demo's saved init (commit cca1e7a, undirected F1 at 1 / 2 / 3 mm): 60 + 20 steps 50.7 / 82.2 / 92.1,
 # 20 + 10 steps 51.8 / 82.4 / 92.1 (init 52.4 / 81.9 / 91.4); on the colours preset's straight hair (30 views of
 # 384 px, 50,000 strands) 63.3 / 88.2 / 95.3 and 63.7 / 88.2 / 95.3. On the demo's 2 mm raw mesh (below; commit
