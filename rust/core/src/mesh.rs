@@ -331,8 +331,22 @@ impl Bvh {
 
     /// The closest point of the mesh to `p` within `max_dist` (use `f32::INFINITY` for no limit).
     pub fn closest_point(&self, p: Vec3, max_dist: f32) -> Option<ClosestPoint> {
+        self.closest_point_near(p, max_dist, None)
+    }
+
+    /// [`Bvh::closest_point`] given a triangle that is likely close to `p` (the closest triangle of
+    /// a neighbouring query): its distance bounds the search from the start, so fewer nodes are
+    /// opened. The result is the same as without the hint: every triangle at the smallest distance
+    /// is still visited, in the same order.
+    pub fn closest_point_near(&self, p: Vec3, max_dist: f32, hint: Option<u32>) -> Option<ClosestPoint> {
         let mut best: Option<ClosestPoint> = None;
         let mut best_d2 = if max_dist.is_finite() { max_dist * max_dist } else { f32::INFINITY };
+        if let Some(t) = hint.filter(|&t| (t as usize) < self.mesh.triangles.len()) {
+            let [a, b, c] = self.mesh.corners(t as usize);
+            let (q, _) = closest_on_triangle(p, a, b, c);
+            // a margin over the rounding of a node's box distance against its triangles' distances
+            best_d2 = best_d2.min((q - p).length_squared() * (1.0 + 1e-5) + 1e-14);
+        }
         let mut stack = [0u32; 64];
         let mut sp = 1usize;
         while sp > 0 {
@@ -378,17 +392,24 @@ impl Bvh {
     /// boundary vertex (an edge with one face), the point is outside (for example the space below
     /// a head mesh cut off at the neck, which the pseudo-normals of the rim would call inside).
     pub fn signed_distance(&self, p: Vec3, max_dist: f32) -> Option<f32> {
-        let cp = self.closest_point(p, max_dist)?;
+        self.signed_distance_near(p, max_dist, None).map(|(d, _)| d)
+    }
+
+    /// [`Bvh::signed_distance`] with a hint (see [`Bvh::closest_point_near`]); also returns the
+    /// closest triangle, the hint for the next query nearby.
+    pub fn signed_distance_near(&self, p: Vec3, max_dist: f32, hint: Option<u32>) -> Option<(f32, u32)> {
+        let cp = self.closest_point_near(p, max_dist, hint)?;
+        let t = cp.triangle;
         if self.on_boundary(&cp) {
-            return Some(cp.distance);
+            return Some((cp.distance, t));
         }
         if self.doubtful.get(cp.triangle as usize).copied().unwrap_or(false) {
             let n = folds::net_normal(self, cp.point, self.vote_radius);
-            return Some(if (p - cp.point).dot(n) < 0.0 { -cp.distance } else { cp.distance });
+            return Some((if (p - cp.point).dot(n) < 0.0 { -cp.distance } else { cp.distance }, t));
         }
         let n = self.pseudo_normal(&cp);
         let s = if (p - cp.point).dot(n) < 0.0 { -1.0 } else { 1.0 };
-        Some(s * cp.distance)
+        Some((s * cp.distance, t))
     }
 
     /// Whether a closest point lies on the mesh's rim (a boundary edge or vertex), not inside a face.
@@ -575,6 +596,43 @@ mod tests {
         assert!(bvh.ray_cast(Vec3::new(0.0, 0.0, 3.0), Vec3::X, 0.0, f32::INFINITY).is_none());
     }
 
+    #[test]
+    fn a_hint_gives_the_same_closest_point_and_signed_distance() {
+        // Points along rows, as the flow's distance pass queries them; hints from the last point's
+        // closest triangle, from far triangles and out of range.
+        let m = sphere(1.0, 48, 24);
+        let bvh = Bvh::new(m.clone());
+        let n = m.triangles.len() as u32;
+        let mut rnd = uniform(777, 1.6);
+        let mut other_triangle = 0;
+        for _ in 0..60 {
+            let start = Vec3::new(rnd(), rnd(), rnd());
+            let mut last = None;
+            for i in 0..20 {
+                let p = start + Vec3::X * (0.03 * i as f32);
+                for max_dist in [f32::INFINITY, 0.3] {
+                    let plain = bvh.closest_point(p, max_dist);
+                    for hint in [last, Some(0), Some(n / 2), Some(n + 5)] {
+                        let near = bvh.closest_point_near(p, max_dist, hint);
+                        assert_eq!(
+                            plain.map(|c| (c.triangle, c.point, c.distance, c.bary)),
+                            near.map(|c| (c.triangle, c.point, c.distance, c.bary)),
+                            "{p:?} {hint:?}"
+                        );
+                        let sd = bvh.signed_distance(p, max_dist);
+                        assert_eq!(sd, bvh.signed_distance_near(p, max_dist, hint).map(|(d, _)| d));
+                    }
+                }
+                let cp = bvh.closest_point(p, f32::INFINITY).unwrap();
+                if last.is_some_and(|t| t != cp.triangle) {
+                    other_triangle += 1;
+                }
+                last = Some(cp.triangle);
+            }
+        }
+        // the rows cross triangles, so most hints are a neighbour's triangle, not the answer itself
+        assert!(other_triangle > 300, "{other_triangle}");
+    }
     #[test]
     fn cube_is_closed_and_signed() {
         let bvh = Bvh::new(unit_cube());

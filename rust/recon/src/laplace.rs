@@ -319,17 +319,21 @@ pub fn solve_flow(
             .zip(sd_inner[r.clone()].par_chunks_mut(dims[0]))
             .enumerate()
             .for_each(|(j, (row_outer, row_inner))| {
+                // The last closest triangles start the next queries (the same results, fewer nodes).
                 let (mut last_outer, mut last_inner) = (None, None);
+                let (mut tri_outer, mut tri_inner) = (None, None);
                 for (i, (so, si)) in row_outer.iter_mut().zip(row_inner.iter_mut()).enumerate() {
                     let p = grid.centre(grid.index(i, j, k));
-                    let outer = raw.signed_distance(p, band.min(step_bound(last_outer)));
-                    last_outer = outer.map(f32::abs);
-                    *so = outer.unwrap_or(band);
+                    let outer = raw.signed_distance_near(p, band.min(step_bound(last_outer)), tri_outer);
+                    last_outer = outer.map(|(d, _)| d.abs());
+                    tri_outer = outer.map(|(_, t)| t);
+                    *so = outer.map_or(band, |(d, _)| d);
                     // Beyond the outer margin the value only serves growing's push-out, far from the head.
                     let reach = if *so <= params.outer_margin { f32::INFINITY } else { band };
-                    let inner_d = inner.signed_distance(p, reach.min(step_bound(last_inner)));
-                    last_inner = inner_d.map(f32::abs);
-                    *si = inner_d.unwrap_or(band);
+                    let inner_d = inner.signed_distance_near(p, reach.min(step_bound(last_inner)), tri_inner);
+                    last_inner = inner_d.map(|(d, _)| d.abs());
+                    tri_inner = inner_d.map(|(_, t)| t);
+                    *si = inner_d.map_or(band, |(d, _)| d);
                 }
             });
     }
