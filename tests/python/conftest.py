@@ -16,6 +16,7 @@ pytest runs (``scripts/test.sh`` runs pytest twice, with bpy 5.0 and 4.2, on one
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import subprocess
@@ -67,9 +68,18 @@ def test_capture(tmp_path_factory) -> Path:
     if env:
         return Path(env)
     cache = os.environ.get("HAIRRECON_TEST_CAPTURE_CACHE")
-    if cache and (Path(cache) / "capture" / "capture.json").is_file():
-        return Path(cache) / "capture"
-    tmp = tmp_path_factory.mktemp("synthetic")
+    if not cache:
+        return render_test_capture(tmp_path_factory.mktemp("synthetic"), None)
+    # the test command runs two pytest sessions at once: one renders, the other waits for it
+    with open(Path(cache) / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if (Path(cache) / "capture" / "capture.json").is_file():
+            return Path(cache) / "capture"
+        return render_test_capture(tmp_path_factory.mktemp("synthetic"), cache)
+
+
+def render_test_capture(tmp: Path, cache: str | None) -> Path:
+    """Renders the test-preset capture: in `tmp`, or into the folder `cache` (whole or not at all)."""
     exe = hairrecon_bin()
     head, scalp = head_files()
     hair = straight_hair(exe, tmp, 2000)
