@@ -6,8 +6,9 @@
 #     into .venv; the Blender extension's tests bundle the same wheel;
 #   - with --blender42: also .venv-blender42 with bpy 4.2 (requirements-blender42.txt), the oldest Blender the
 #     extension supports, for the extension's tests (scripts/test.sh);
-#   - with --tests: the CLI built together with the Rust tests and examples, as `cargo test --release` builds
-#     them (the dev-dependencies add features to shared crates, so a CLI built alone is compiled twice).
+#   - with --tests: the CLI built together with the Rust tests, as `cargo test --release --tests` builds them
+#     (the dev-dependencies add features to shared crates, so a CLI built alone is compiled twice); the
+#     examples are benchmarks and studies, not tests: clippy checks that they compile.
 # Needs: a Rust toolchain (cargo) and CPython 3.11 with venv and pip.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -51,7 +52,7 @@ fi
 
 if [ "$TESTS" = 1 ]; then
   echo "setup: building the hairrecon CLI with the Rust tests (release) (at ${SECONDS} s)"
-  cargo build --release --quiet --workspace --exclude hairrecon-python --lib --bins --tests --examples
+  cargo build --release --quiet --workspace --exclude hairrecon-python --lib --bins --tests
 else
   echo "setup: building the hairrecon CLI (release) (at ${SECONDS} s)"
   cargo build --release --quiet -p hairrecon-cli

@@ -27,8 +27,10 @@ step "cargo doc (no warnings)"
 RUSTDOCFLAGS="-D warnings" cargo doc --release --quiet --workspace --no-deps
 step "cargo clippy (all targets, -D warnings)"
 cargo clippy --release --quiet --workspace --all-targets -- -D warnings
+# the unit and integration tests, then the doc tests (the examples are not built: clippy checked them)
 step "cargo test (release profile; every reader on the fuzzing corpus; the Python module is tested from Python)"
-cargo test --release --workspace --exclude hairrecon-python
+cargo test --release --workspace --exclude hairrecon-python --tests
+cargo test --release --workspace --exclude hairrecon-python --doc
 export HAIRRECON_BIN="${CARGO_TARGET_DIR:-$(pwd)/target}/release/hairrecon"
 export HAIRRECON_WHEEL="$(ls "$(pwd)"/target/wheels-hairrecon/hairrecon-*.whl | head -n 1)"
 # The two pytest sessions run at once (each keeps one core busy only part of the time: Blender's
