@@ -11,7 +11,8 @@ It needs:
 
 Set ``HAIRRECON_TEST_CAPTURE`` to an existing capture folder to skip the render (for development).
 Set ``HAIRRECON_TEST_CAPTURE_CACHE`` to a folder to render the capture there once and reuse it in later
-pytest runs (``scripts/test.sh`` runs pytest twice, with bpy 5.0 and 4.2, on one render).
+pytest runs (``scripts/test.sh`` runs two pytest sessions at once, with bpy 5.0 and 4.2, on one render:
+the first to need it renders it under a lock, the other waits).
 """
 
 from __future__ import annotations
