@@ -313,27 +313,26 @@ pub fn solve_flow(
         // Row by row along x, each query bounded by the last voxel's distance plus the step (a
         // distance changes by at most the step between neighbours): the same closest points, with
         // fewer of the BVH's nodes opened.
-        let step_bound = |last: Option<f32>| last.map_or(f32::INFINITY, |d| (d + params.voxel) * 1.001 + 1e-6);
+        let step_bound =
+            |last: Option<(f32, u32)>| last.map_or(f32::INFINITY, |(d, _)| (d.abs() + params.voxel) * 1.001 + 1e-6);
         sd_outer[r.clone()]
             .par_chunks_mut(dims[0])
             .zip(sd_inner[r.clone()].par_chunks_mut(dims[0]))
             .enumerate()
             .for_each(|(j, (row_outer, row_inner))| {
-                // The last closest triangles start the next queries (the same results, fewer nodes).
+                // The last voxel's (signed distance, closest triangle): the triangle starts the next
+                // query (the same results, fewer nodes).
                 let (mut last_outer, mut last_inner) = (None, None);
-                let (mut tri_outer, mut tri_inner) = (None, None);
                 for (i, (so, si)) in row_outer.iter_mut().zip(row_inner.iter_mut()).enumerate() {
                     let p = grid.centre(grid.index(i, j, k));
-                    let outer = raw.signed_distance_near(p, band.min(step_bound(last_outer)), tri_outer);
-                    last_outer = outer.map(|(d, _)| d.abs());
-                    tri_outer = outer.map(|(_, t)| t);
-                    *so = outer.map_or(band, |(d, _)| d);
+                    last_outer =
+                        raw.signed_distance_near(p, band.min(step_bound(last_outer)), last_outer.map(|(_, t)| t));
+                    *so = last_outer.map_or(band, |(d, _)| d);
                     // Beyond the outer margin the value only serves growing's push-out, far from the head.
                     let reach = if *so <= params.outer_margin { f32::INFINITY } else { band };
-                    let inner_d = inner.signed_distance_near(p, reach.min(step_bound(last_inner)), tri_inner);
-                    last_inner = inner_d.map(|(d, _)| d.abs());
-                    tri_inner = inner_d.map(|(_, t)| t);
-                    *si = inner_d.map_or(band, |(d, _)| d);
+                    last_inner =
+                        inner.signed_distance_near(p, reach.min(step_bound(last_inner)), last_inner.map(|(_, t)| t));
+                    *si = last_inner.map_or(band, |(d, _)| d);
                 }
             });
     }
