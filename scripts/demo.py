@@ -73,10 +73,10 @@ def step(n: int, title: str, cmd: list[str], **kw) -> None:
 IMPORT_SNIPPET = r"""
 import sys, bpy
 sys.path.insert(0, {scripts!r})
-import reconstruct
-reconstruct.ensure_addon(bpy)
+import blender_batch
+blender_batch.ensure_addon(bpy)
 bpy.ops.wm.read_factory_settings(use_empty=True)
-reconstruct.ensure_addon(bpy)
+blender_batch.ensure_addon(bpy)
 bpy.ops.hairrecon.import_capture(directory={capture!r})
 bpy.ops.wm.save_as_mainfile(filepath={blend!r})
 print("      saved", {blend!r})

@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reconstruct import Failure, ensure_addon, script_args  # noqa: E402
+from blender_batch import Failure, ensure_addon, script_args  # noqa: E402
 
 ROWS = (
     ("exploded", "exploded", "{}"),

@@ -28,12 +28,14 @@ The add-on comes from the installed extension (bl_ext.*.hairrecon), else from th
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import importlib
 import json
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "scripts"))  # under `blender -P` the script's folder is not on the path
+from blender_batch import Failure, ensure_addon, script_args  # noqa: E402
 
 
 def parse_args(argv):
@@ -87,43 +89,6 @@ def parse_args(argv):
                          "measures to this JSON (scripts/physics_check.py does it for a saved scene)")
     ap.add_argument("--physics-strands", type=int, default=400, help="strands simulated by --physics (default 400)")
     return ap.parse_args(argv)
-
-
-def script_args() -> list[str]:
-    argv = sys.argv
-    if "--" in argv:
-        return argv[argv.index("--") + 1:]
-    return argv[1:]
-
-
-class Failure(Exception):
-    pass
-
-
-def ensure_addon(bpy):
-    """Makes bpy.ops.hairrecon available: an enabled or installed extension, else the source tree."""
-    if hasattr(bpy.types, "HAIRRECON_OT_reconstruct"):
-        return bpy.types.HAIRRECON_OT_reconstruct.__module__.rsplit(".", 1)[0]
-    import addon_utils
-
-    for mod in addon_utils.modules(refresh=True):
-        if mod.__name__.startswith("bl_ext.") and mod.__name__.endswith(".hairrecon"):
-            addon_utils.enable(mod.__name__, default_set=False, handle_error=None)
-            if hasattr(bpy.types, "HAIRRECON_OT_reconstruct"):
-                return mod.__name__
-    return register_source_addon()
-
-
-def register_source_addon() -> str:
-    """Registers ``addon/hairrecon`` from this source tree under the name ``hairrecon_addon`` (which does not
-    hide the ``hairrecon`` library module) and returns that name."""
-    pkg = ROOT / "addon" / "hairrecon"
-    spec = importlib.util.spec_from_file_location("hairrecon_addon", pkg / "__init__.py", submodule_search_locations=[str(pkg)])
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["hairrecon_addon"] = mod
-    spec.loader.exec_module(mod)
-    mod.register()
-    return "hairrecon_addon"
 
 
 def apply_overrides(bpy, a):
@@ -479,7 +444,6 @@ def run(a) -> dict:
                     panels.insert(0, (a.render_gt, "ground truth"))
                 summary["render_pair"] = render_pair(bpy, panels, a.render_pair)
     if a.physics is not None:
-        sys.path.insert(0, str(ROOT / "scripts"))
         import physics_check
 
         physics = importlib.import_module(f"{package}.physics")
@@ -488,7 +452,7 @@ def run(a) -> dict:
         settings = physics.PhysicsSettings(strands=a.physics_strands)
         try:
             results, checks = physics_check.simulate(bpy, package, strands, gt_strands, settings)
-        except physics_check.Failure as e:  # the module's own copy of Failure
+        except Failure as e:
             raise Failure(f"--physics: {e}") from None
         for c in checks:
             c.remove()

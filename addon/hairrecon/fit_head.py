@@ -26,7 +26,7 @@ import bpy
 from . import scene_build, scene_read
 from .core.camera import CameraInputError, blender_camera, opencv_from_blender
 from .core.capture import CaptureInputError, check_mesh, write_fit_capture
-from .session import FRAME_PROPERTY, UserError, library, panel_cameras
+from .session import FRAME_PROPERTY, RUNNING, UserError, library, panel_cameras
 
 COLLECTION = "Fitted Head"
 HEAD_NAME = "Fitted Head"
@@ -37,13 +37,6 @@ MARK = "hairrecon_fitted"
 FRAME = FRAME_PROPERTY
 # what to do when the fit fails, added to the library's message
 ADVICE = "Pick the raw mesh of the head (with the face) in Raw Mesh, or give the scalp by hand (Hair tab > Scalp)"
-
-_RUNNING: dict = {}  # the running fit (modal path), at most one
-
-
-def running() -> bool:
-    return bool(_RUNNING)
-
 
 class FitRun:
     """One fit: the capture written from the scene, then ``hairrecon.fit_head`` on a thread."""
@@ -175,9 +168,7 @@ class HAIRRECON_OT_fit_head(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        from .operators import _ACTIVE
-
-        if _RUNNING or _ACTIVE:
+        if RUNNING:
             cls.poll_message_set("a head fit or a hair reconstruction is running")
             return False
         return context.scene is not None
@@ -222,7 +213,7 @@ class HAIRRECON_OT_fit_head(bpy.types.Operator):
         if run is None:
             return {"CANCELLED"}
         run.start()
-        _RUNNING["run"] = run
+        RUNNING["fit_head"] = run
         wm = context.window_manager
         self._timer = wm.event_timer_add(0.2, window=context.window)
         wm.hairrecon_fitting = True
@@ -237,13 +228,13 @@ class HAIRRECON_OT_fit_head(bpy.types.Operator):
         wm.hairrecon_fitting = False
         if context.workspace is not None:
             context.workspace.status_text_set(None)
-        _RUNNING.clear()
+        RUNNING.pop("fit_head", None)
         for area in context.screen.areas if context.screen else ():
             if area.type == "VIEW_3D":
                 area.tag_redraw()
 
     def modal(self, context, event):
-        run: FitRun = _RUNNING.get("run")
+        run: FitRun = RUNNING.get("fit_head")
         if run is None:
             return {"CANCELLED"}
         if event.type == "ESC" and event.value == "PRESS":
@@ -257,7 +248,7 @@ class HAIRRECON_OT_fit_head(bpy.types.Operator):
         return {"PASS_THROUGH"}
 
     def cancel(self, context):
-        if _RUNNING:
+        if "fit_head" in RUNNING:
             self._end_modal(context)
 
 
@@ -272,4 +263,4 @@ def register():
 def unregister():
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)
-    _RUNNING.clear()
+    RUNNING.pop("fit_head", None)

@@ -15,12 +15,11 @@ import numpy as np
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import fit_head, scene_build
+from . import scene_build
 from .core.camera import PinholeCamera
 from .core.capture import CaptureInputError, read_capture_json
-from .session import Session, UserError, describe, library
+from .session import RUNNING, Session, UserError, describe, library
 
-_ACTIVE: dict = {}  # the running modal session, at most one
 LAST_SUMMARY: dict = {}  # the summary of the last successful reconstruction (for batch scripts)
 
 
@@ -55,10 +54,10 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if _ACTIVE:
+        if "reconstruct" in RUNNING:
             cls.poll_message_set("a hair reconstruction is already running")
             return False
-        if fit_head.running():
+        if "fit_head" in RUNNING:
             cls.poll_message_set("a head fit is running")
             return False
         return context.scene is not None
@@ -121,7 +120,7 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
         session = self._start(context)
         if session is None:
             return {"CANCELLED"}
-        _ACTIVE["session"] = session
+        RUNNING["reconstruct"] = session
         self._timer = context.window_manager.event_timer_add(0.2, window=context.window)
         context.window_manager.progress_begin(0, 1000)
         _set_status(context, True, 0.0, "starting")
@@ -133,10 +132,10 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
         wm.event_timer_remove(self._timer)
         wm.progress_end()
         _set_status(context, False)
-        _ACTIVE.clear()
+        RUNNING.pop("reconstruct", None)
 
     def modal(self, context, event):
-        session: Session = _ACTIVE.get("session")
+        session: Session = RUNNING.get("reconstruct")
         if session is None:
             return {"CANCELLED"}
         if event.type == "ESC" and event.value == "PRESS":
@@ -154,7 +153,7 @@ class HAIRRECON_OT_reconstruct(bpy.types.Operator):
 
     def cancel(self, context):
         # Blender ends the modal operator (file load, window closed): stop the job, drop the files
-        session = _ACTIVE.get("session")
+        session = RUNNING.get("reconstruct")
         if session is not None:
             session.cancel()
             session.wait()
@@ -352,4 +351,4 @@ def unregister():
     bpy.types.TOPBAR_MT_file_import.remove(menu_import)
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)
-    _ACTIVE.clear()
+    RUNNING.pop("reconstruct", None)

@@ -28,6 +28,9 @@ from . import scene_build, scene_read
 # custom property that Fit Head puts on the objects it adds: the similarity from the scene's frame to
 # the canonical one, as JSON (``scale``, ``rotation`` by rows, ``translation``)
 FRAME_PROPERTY = "hairrecon_to_canonical"
+# the modal jobs running now, at most one of each kind ("reconstruct": a Session, "fit_head": a FitRun);
+# Reconstruct Hair and Fit Head refuse to start while either runs
+RUNNING: dict = {}
 
 
 class UserError(Exception):

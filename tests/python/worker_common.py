@@ -37,7 +37,7 @@ def install(zip_path: str) -> dict:
     import addon_utils
 
     if not zip_path:
-        from reconstruct import register_source_addon
+        from blender_batch import register_source_addon
 
         _PACKAGE["name"] = register_source_addon()
         import hairrecon

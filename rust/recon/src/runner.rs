@@ -1,6 +1,9 @@
 //! The runner of `hairrecon reconstruct`: the stages of [`crate::stages`] in order, each output
 //! saved as it is made, evaluation ([`crate::eval`]) beside the run when the capture has ground
-//! truth, and a report ([`crate::report`]).
+//! truth, and a report ([`crate::report`]). It has three parts: `place` runs stages `head` and
+//! `masks` (the capture in its files' frame, placed in the canonical frame and masked), `chain` the
+//! stages after them, and `record` what every stage shares (a failed stage's files removed, a finished
+//! stage recorded in the report).
 //!
 //! `--from STAGE` reloads what an earlier run saved in the same folder for the stages before
 //! STAGE; `--stop-after STAGE` stops there. A run owns its folder ([`crate::run_folder`]): at its
@@ -21,17 +24,15 @@ use hairrecon_core::capture::Capture;
 
 use crate::config::{ConfigFile, Plan, ReconstructConfig, Stage};
 use crate::error::ReconError;
-use crate::eval::Evaluator;
 use crate::progress::Progress;
-use crate::report::{Report, RunStatus, StageClock};
-use crate::stages::direction::DirectionOut;
-use crate::stages::head::{HeadOut, Need};
-use crate::stages::init::InitOut;
-use crate::stages::masks::MasksOut;
-use crate::stages::orient2d::Orient2dOut;
-use crate::stages::orient3d::Orient3dOut;
-use crate::stages::partings::PartingsOut;
-use crate::stages::{self, remove, Context};
+use crate::report::{Report, RunStatus};
+use crate::stages::Context;
+
+mod chain;
+mod place;
+mod record;
+
+use record::guarded;
 
 /// What a run produced.
 #[derive(Debug, Clone, PartialEq)]
@@ -99,40 +100,8 @@ pub fn reconstruct(
     })
 }
 
-/// A warning when views have no hair mask: every pixel of such a view counts as hair (DR's
-/// silhouette, the 3D points, the visual hull, the partings), which a photo's background is not.
-pub fn missing_masks_warning(capture: &Capture) -> Option<String> {
-    let without: Vec<&str> = capture.views.iter().filter(|v| v.mask.is_none()).map(|v| v.name.as_str()).collect();
-    if without.is_empty() {
-        return None;
-    }
-    let which = if without.len() == capture.views.len() {
-        "no view has a hair mask".to_string()
-    } else {
-        format!("{} of {} views have no hair mask (first: {})", without.len(), capture.views.len(), without[0])
-    };
-    Some(format!(
-        "{which}: every pixel of those views counts as hair; make masks from the raw mesh and the photos with \
-         `hairrecon masks {} --write` (after `hairrecon fit-head {} --write` if the capture has no head)",
-        capture.dir.display(),
-        capture.dir.display()
-    ))
-}
-
-/// Runs `f`, a stage on `ctx`; when it fails, what it wrote goes (as far as it can: the error to
-/// report is the stage's).
-fn guarded<T>(ctx: &Context<'_>, f: impl FnOnce() -> Result<T, ReconError>) -> Result<T, ReconError> {
-    let r = f();
-    if r.is_err() {
-        for f in ctx.take_written() {
-            let _ = remove(&ctx.path(&f));
-        }
-    }
-    r
-}
-
-/// Every stage from `from` to `last`, recorded in `report`: stage `head` on the capture as loaded
-/// (its files' frame), then, in the canonical frame, stage `masks` and the rest ([`run_stages`]).
+/// Every stage from `from` to `last`, recorded in `report`: stages `head` and `masks`
+/// ([`place::place`]), then the rest on the capture they place ([`chain::run_stages`]).
 fn run_all(
     capture: &Capture,
     out_dir: &Path,
@@ -142,200 +111,11 @@ fn run_all(
     last: Stage,
     progress: &dyn Progress,
 ) -> Result<(), ReconError> {
-    let runs = |s: Stage| from <= s && s <= last;
-    let need = stages::head::needed(capture, cfg.make_masks);
-    let head = if need == Need::No {
-        None
-    } else {
-        let ctx = Context::new(capture, out_dir, progress);
-        let made = if runs(Stage::Head) {
-            let t = StageClock::start();
-            let made = guarded(&ctx, || {
-                let (o, meshes) = stages::head::run(&ctx, cfg)?;
-                o.save(&ctx, &meshes)?;
-                Ok(o)
-            });
-            if let Ok(o) = &made {
-                finished(&ctx, report, Stage::Head, t, &o.fit)?;
-            }
-            made
-        } else {
-            HeadOut::load(&ctx, from)
-        };
-        match made {
-            Ok(o) => Some(o),
-            // Wanted only for the masks: the run goes on without them (a warning says so below).
-            Err(ReconError::HeadFit(msg)) if need == Need::ForMasks => {
-                report.warnings.push(format!("no hair masks were made: the head fit failed: {msg}"));
-                None
-            }
-            Err(ReconError::MissingStageOutput { .. }) if need == Need::ForMasks => None,
-            Err(e) => return Err(e),
-        }
-    };
-    let placed = match &head {
-        Some(h) => h.apply(capture, out_dir),
-        None => capture.clone(),
-    };
-    let Some(placed) = placed.in_canonical_frame().map_err(ReconError::Capture)? else {
-        return Err(ReconError::NotCanonical {
-            dir: capture.dir.clone(),
-            frame: capture.frame.name().into(),
-            units: capture.units.name().into(),
-        });
-    };
-    if head.is_some() {
-        // What the fit made, checked as a user's meshes are.
-        crate::preflight::check(&placed)?;
-    }
-    if last == Stage::Head {
+    let Some(masked) = place::place(capture, out_dir, cfg, report, from, last, progress)? else {
         return Ok(());
-    }
-
-    // Masks need a head: without one (a fit that failed) the views stay without masks.
-    let masked = if stages::masks::needed(&placed, cfg) && placed.head_mesh.is_some() {
-        let ctx = Context::new(&placed, out_dir, progress);
-        if runs(Stage::Masks) {
-            let t = StageClock::start();
-            let o = guarded(&ctx, || {
-                let o = stages::masks::run(&ctx, cfg)?;
-                o.save(&ctx)?;
-                Ok(o)
-            })?;
-            finished(&ctx, report, Stage::Masks, t, &o.report)?;
-        } else {
-            MasksOut::check_saved(&ctx, from)?;
-        }
-        stages::masks::apply(&placed, out_dir)
-    } else {
-        placed
     };
-    if last == Stage::Masks {
-        return Ok(());
-    }
-    report.warnings.extend(missing_masks_warning(&masked));
+    report.warnings.extend(place::missing_masks_warning(&masked));
     report.save(&out_dir.join("report.json"))?;
     let ctx = Context::new(&masked, out_dir, progress);
-    guarded(&ctx, || run_stages(&ctx, cfg, report, from.max(Stage::Orient2d), last))
-}
-
-/// The stages from `from` (orient2d or later) to `last`, recorded in `report`.
-fn run_stages(
-    ctx: &Context<'_>,
-    cfg: &ReconstructConfig,
-    report: &mut Report,
-    from: Stage,
-    last: Stage,
-) -> Result<(), ReconError> {
-    let raw = || ctx.raw();
-    let eval = Evaluator::new(ctx.capture, &raw);
-    let runs = |s: Stage| from <= s && s <= last;
-    let t = StageClock::start();
-    let maps = if runs(Stage::Orient2d) {
-        let o = stages::orient2d::run(ctx, cfg)?;
-        o.save(ctx, cfg.write_pictures)?;
-        finished(ctx, report, Stage::Orient2d, t, &())?;
-        report.scores.orient2d = eval.orient2d(&o.maps)?;
-        o.maps
-    } else {
-        Orient2dOut::load(ctx, from)?.maps
-    };
-    if last == Stage::Orient2d {
-        return Ok(());
-    }
-
-    let t = StageClock::start();
-    let points = if runs(Stage::Orient3d) {
-        let o = stages::orient3d::run(ctx, cfg, &maps)?;
-        o.save(ctx)?;
-        finished(ctx, report, Stage::Orient3d, t, &())?;
-        report.scores.orient3d = eval.points(&o.points)?;
-        Some(o.points)
-    } else if runs(Stage::Direction) {
-        Some(Orient3dOut::load(ctx, from)?.points)
-    } else {
-        None
-    };
-    if last == Stage::Orient3d {
-        return Ok(());
-    }
-
-    let t = StageClock::start();
-    let scalp = if runs(Stage::Partings) {
-        let o = stages::partings::run(ctx, cfg)?;
-        o.save(ctx)?;
-        finished(ctx, report, Stage::Partings, t, &o.stats)?;
-        o.scalp
-    } else {
-        PartingsOut::load(ctx, from, &cfg.parting)?.scalp
-    };
-    if last == Stage::Partings {
-        return Ok(());
-    }
-
-    let t = StageClock::start();
-    let directed = match points {
-        Some(points) => {
-            let o = stages::direction::run(ctx, cfg, &points, &scalp)?;
-            o.save(ctx)?;
-            finished(ctx, report, Stage::Direction, t, &o.stats)?;
-            report.scores.direction = eval.directions(&o.directed)?;
-            o.directed
-        }
-        None if runs(Stage::Init) => DirectionOut::load(ctx, from)?.directed,
-        None => Default::default(),
-    };
-    if last == Stage::Direction {
-        return Ok(());
-    }
-
-    let t = StageClock::start();
-    let init = if runs(Stage::Init) {
-        let o = stages::init::run(ctx, cfg, &directed, &scalp, &maps)?;
-        o.save(ctx)?;
-        finished(ctx, report, Stage::Init, t, &o.stats)?;
-        report.warnings.extend(o.stats.hull_warning.clone());
-        if let (Some(axes), Some(c)) = (&o.seen_axes, o.info.curl) {
-            report.scores.axes = eval.axes(axes, &c)?;
-        }
-        ctx.progress.update("metrics", 0.0, "scoring strands");
-        report.scores.init_guides = eval.strands(&o.guides)?;
-        report.scores.init_strands = eval.strands(&o.children)?;
-        o
-    } else {
-        InitOut::load(ctx, from)?
-    };
-    drop(directed);
-    if last == Stage::Init {
-        ctx.write_result("guides.hair", &init.guides)?;
-        ctx.write_result("strands.hair", &init.children)?;
-        if let Some(r) = report.stages.iter_mut().find(|r| r.stage == Stage::Init) {
-            r.files.extend(ctx.take_written());
-        }
-        return Ok(());
-    }
-
-    let t = StageClock::start();
-    let o = stages::dr::run(ctx, cfg, init, maps, &scalp)?;
-    o.save(ctx)?;
-    finished(ctx, report, Stage::Dr, t, &o.stats)?;
-    ctx.progress.update("metrics", 0.5, "scoring strands");
-    report.scores.dr_guides = eval.strands(&o.guides)?;
-    report.scores.dr_strands = eval.strands(&o.children)?;
-    ctx.progress.update("dr", 1.0, "");
-    Ok(())
-}
-
-/// Records a finished stage (its time, statistics and the files it wrote) and saves the report,
-/// so that a run killed outright still says what it finished.
-fn finished(
-    ctx: &Context<'_>,
-    report: &mut Report,
-    stage: Stage,
-    start: StageClock,
-    stats: &impl serde::Serialize,
-) -> Result<(), ReconError> {
-    let (seconds, cpu_seconds) = start.elapsed();
-    report.record(stage, seconds, cpu_seconds, stats, ctx.take_written());
-    report.save(&ctx.path("report.json"))
+    guarded(&ctx, || chain::run_stages(&ctx, cfg, report, from.max(Stage::Orient2d), last))
 }
