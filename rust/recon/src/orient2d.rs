@@ -25,7 +25,10 @@
 //! to 18.3° (σ 4: 22.7°, σ 16: 13.0°) and on the test preset from 21.2° to 12.1°; larger σ
 //! still helps straight hair but smooths away curls, so 8 is a compromise not yet checked on a
 //! curly capture. Larger filters without smoothing measured worse per second (σ 4, λ 8: 24.1° at
-//! 1.8× the time; σ 2, λ 3 as in the reference bank: 35.4°).
+//! 1.8× the time; σ 2, λ 3 as in the reference bank: 35.4°). The maps' error is not the figure to
+//! tune σ on: on a wavy capture (colours preset) it falls from 30.5° at σ 4 to 27.7° at σ 16 while the
+//! initial strands fall from 56.6 to 52.6 at 2 mm/20° (σ 8: 55.1; docs/reconstruction.md, wavy hair's
+//! smoothing).
 
 use std::f32::consts::PI;
 use std::path::Path;
