@@ -90,10 +90,17 @@ fn an_interrupted_run_leaves_its_finished_stages_and_no_temporary() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Twelve signals at seeded random moments within 0.9 of a whole run's time (DR included), SIGINT and SIGTERM in
-/// turn, into the folder of a complete earlier run: each run either stops (exit 130, report
-/// `cancelled`, no `strands.hair`) or, signalled after its last write, completes (exit 0, the
-/// result whole); the folder always holds exactly what its report lists and no temporary file.
+/// The stage a progress line names (`[  1.2 s] stage  40% message`).
+fn stage_of(line: &str) -> Option<&str> {
+    line.split("] ").nth(1)?.split(' ').next()
+}
+
+/// Twelve signals at seeded random moments of a run, SIGINT and SIGTERM in turn, into the folder of a
+/// complete earlier run: each signal follows the run's k-th change of stage (k seeded, over every
+/// change of a whole run up to DR's start) by a seeded delay of up to 0.25 s, so that it lands in the
+/// run however fast the machine is at the time. Each run either stops (exit 130, report `cancelled`, no
+/// `strands.hair`) or, signalled after its last write, completes (exit 0, the result whole); the folder
+/// always holds exactly what its report lists and no temporary file.
 #[test]
 fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
     let dir = tmp("random");
@@ -104,29 +111,62 @@ fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
     assert!(whole.status.success(), "{}", String::from_utf8_lossy(&whole.stderr));
     let full = t0.elapsed();
     let complete = std::fs::read(out.join("strands.hair")).unwrap();
+    // The changes of stage of a whole run: a line whose stage is not the last line's.
+    let changes = |text: &str| {
+        let mut last = String::new();
+        let mut n = 0;
+        for stage in text.lines().filter_map(stage_of) {
+            if stage != last {
+                n += 1;
+                last = stage.to_string();
+            }
+        }
+        n
+    };
+    let total = changes(&String::from_utf8_lossy(&whole.stderr));
+    assert!(total >= 5, "a whole run should go through several stages:\n{}", String::from_utf8_lossy(&whole.stderr));
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
     let mut stages_reached = std::collections::BTreeSet::new();
     let mut stopped = 0;
     for trial in 0..12 {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        let at = full.mul_f64((state >> 11) as f64 / (1u64 << 53) as f64 * 0.9);
+        // Not after the last two changes: DR's scoring and its closing line come after the run's
+        // last safe point.
+        let k = 1 + ((next() * (total - 2) as f64) as usize).min(total - 3);
+        let delay = std::time::Duration::from_secs_f64(0.25 * next());
         let sig = if trial % 2 == 0 { "-INT" } else { "-TERM" };
         let mut child = start(&cap, &out);
-        let mut err = child.stderr.take().unwrap();
+        let pid = child.id().to_string();
+        let err = child.stderr.take().unwrap();
+        // Reads the run's log; at the k-th change of stage, waits `delay` and signals. The child is
+        // reaped only after its log ends, so its pid stays its own until then.
         let reader = std::thread::spawn(move || {
             let mut text = String::new();
-            err.read_to_string(&mut text).unwrap();
+            let (mut last, mut seen) = (String::new(), 0);
+            for line in BufReader::new(err).lines() {
+                let line = line.unwrap();
+                if let Some(stage) = stage_of(&line) {
+                    if stage != last {
+                        seen += 1;
+                        last = stage.to_string();
+                        if seen == k {
+                            std::thread::sleep(delay);
+                            assert!(Command::new("kill").args([sig, &pid]).status().unwrap().success());
+                        }
+                    }
+                }
+                text.push_str(&line);
+                text.push('\n');
+            }
             text
         });
-        std::thread::sleep(at);
-        // A run that already finished cannot be signalled (and its pid is not reused while unwaited).
-        if child.try_wait().unwrap().is_none() {
-            signal(&child, sig);
-        }
-        let status = child.wait().unwrap();
         let text = reader.join().unwrap();
-        let context = format!("trial {trial}: {sig} after {at:?} of {full:?}");
-        if let Some(stage) = text.lines().rev().find_map(|l| l.split("] ").nth(1)?.split(' ').next()) {
+        let status = child.wait().unwrap();
+        let context = format!("trial {trial}: {sig} {delay:?} after change of stage {k} of {total}");
+        if let Some(stage) = text.lines().rev().find_map(stage_of) {
             stages_reached.insert(stage.to_string());
         }
         let report = folder_is_what_its_report_lists(&out, &context);
@@ -151,9 +191,8 @@ fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
             other => panic!("{context}: exit {other:?}\n{text}"),
         }
     }
-    eprintln!("12 signals over a {full:?} run: {stopped} stopped it; last stages seen: {stages_reached:?}");
-    // The first run reads cold caches, the later ones are a little faster: a late signal may find
-    // the run complete, which is checked above all the same.
+    eprintln!("12 signals over {total} changes of stage of a {full:?} run: {stopped} stopped it; last stages seen: {stages_reached:?}");
+    // Only a delay that outlasts the last stages can find the run complete.
     assert!(stopped >= 8, "most signals should land during the run: {stopped} of 12 stopped it");
     assert!(stages_reached.len() >= 4, "signals should land in several stages: {stages_reached:?}");
     let _ = std::fs::remove_dir_all(&dir);
