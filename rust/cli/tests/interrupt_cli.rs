@@ -35,8 +35,8 @@ fn start(cap: &Path, out: &Path) -> Child {
         .unwrap()
 }
 
-fn signal(child: &Child, signal: &str) {
-    assert!(Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap().success());
+fn signal(pid: u32, signal: &str) {
+    assert!(Command::new("kill").args([signal, &pid.to_string()]).status().unwrap().success());
 }
 
 /// Reads `out/report.json` and checks that the folder holds exactly the files it lists (with
@@ -78,7 +78,7 @@ fn an_interrupted_run_leaves_its_finished_stages_and_no_temporary() {
         while !text.lines().any(|l| l.contains(&format!("] {stage} "))) {
             assert!(err.read_line(&mut text).unwrap() > 0, "{stage} never started:\n{text}");
         }
-        signal(&child, sig);
+        signal(child.id(), sig);
         err.read_to_string(&mut text).unwrap();
         let status = child.wait().unwrap();
         assert_eq!(status.code(), Some(130), "{sig} at {stage}:\n{text}");
@@ -139,7 +139,7 @@ fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
         let delay = std::time::Duration::from_secs_f64(0.25 * next());
         let sig = if trial % 2 == 0 { "-INT" } else { "-TERM" };
         let mut child = start(&cap, &out);
-        let pid = child.id().to_string();
+        let pid = child.id();
         let err = child.stderr.take().unwrap();
         // Reads the run's log; at the k-th change of stage, waits `delay` and signals. The child is
         // reaped only after its log ends, so its pid stays its own until then.
@@ -154,7 +154,7 @@ fn runs_interrupted_at_random_moments_leave_what_their_report_lists() {
                         last = stage.to_string();
                         if seen == k {
                             std::thread::sleep(delay);
-                            assert!(Command::new("kill").args([sig, &pid]).status().unwrap().success());
+                            signal(pid, sig);
                         }
                     }
                 }
