@@ -46,6 +46,9 @@ pub struct FitHeadArgs {
     /// Fail when more than this fraction of the template's skin lies outside the raw mesh.
     #[arg(long, default_value_t = FitOptions::default().max_exposed_fraction)]
     pub max_exposed: f64,
+    /// Keep the template's own shape (the similarity alone): no fit of the subject's head shape.
+    #[arg(long)]
+    pub no_shape: bool,
 }
 
 pub fn run(args: FitHeadArgs) -> CmdResult {
@@ -61,7 +64,12 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
         }
         None => (Template::bundled(), None, None),
     };
-    let opts = FitOptions { max_exposed_fraction: args.max_exposed, ..FitOptions::default() };
+    let defaults = FitOptions::default();
+    let opts = FitOptions {
+        max_exposed_fraction: args.max_exposed,
+        deform: defaults.deform.clone().filter(|_| !args.no_shape),
+        ..defaults
+    };
     let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras)?;
     let out =
         fitted.report(template_path.as_deref(), scalp_path.as_deref(), !args.no_cameras, t0.elapsed().as_secs_f64());

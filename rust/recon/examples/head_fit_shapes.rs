@@ -14,6 +14,8 @@ use glam::{DMat3, DQuat, DVec3, Vec3};
 use hairrecon_core::formats::read_mesh;
 use hairrecon_core::TriMesh;
 use hairrecon_recon::head_fit::compare::surface_error;
+use hairrecon_recon::head_fit::nonrigid::{fit_deformation, DeformOptions};
+use hairrecon_recon::head_fit::surface::RawSurface;
 use hairrecon_recon::head_fit::{fit_similarity, transform_mesh, FitOptions, HeadTemplate, Similarity};
 
 /// SplitMix64.
@@ -67,19 +69,27 @@ impl Deform {
 
 fn main() {
     let heads: u64 = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(10);
+    let first: u64 = std::env::args().nth(2).and_then(|s| s.parse().ok()).unwrap_or(0);
+    let crown = std::env::args().any(|a| a == "--cut-crown");
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures");
     let head = read_mesh(dir.join("head.ply")).expect("head.ply");
     let scalp = read_mesh(dir.join("scalp.ply")).expect("scalp.ply");
     let template = HeadTemplate::new(&head, Some(&scalp), 2000, 7).expect("template");
-    println!("| head | axis scales | fit scale | scalp mean mm | scalp p95 mm |");
-    println!("|---:|---|---:|---:|---:|");
-    let (mut sum_mean, mut sum_p95) = (0.0, 0.0);
-    for seed in 0..heads {
+    println!("| head | axis scales | fit scale | similarity: scalp mean · p95 mm | deformed: scalp mean · p95 mm | scalp on the mesh | deform s |");
+    println!("|---:|---|---:|---:|---:|---:|---:|");
+    let (mut sum_mean, mut sum_p95, mut def_mean, mut def_p95, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for seed in first..first + heads {
         let mut rng = Rng(seed * 7919 + 1);
         let deform = Deform::new(&mut rng);
         let mut raw = deform.mesh(&head);
         for v in &mut raw.vertices {
             *v += Vec3::new(rng.signed() as f32, rng.signed() as f32, rng.signed() as f32) * 0.0005;
+        }
+        if crown {
+            // The top of the head missing from the raw mesh, as photos from around a head leave it.
+            let top = raw.vertices.iter().map(|v| v.z).fold(f32::MIN, f32::max);
+            let keep: Vec<bool> = raw.vertices.iter().map(|v| v.z < top - 0.03).collect();
+            raw.triangles.retain(|t| t.iter().all(|&i| keep[i as usize]));
         }
         let true_scalp = deform.mesh(&scalp);
         let q = DQuat::from_xyzw(rng.signed(), rng.signed(), rng.signed(), rng.signed()).normalize();
@@ -99,17 +109,38 @@ fn main() {
         // The template's scalp placed by the fit, back in the canonical frame of the deformed head.
         let placed = transform_mesh(&transform_mesh(&scalp, &fit.to_canonical.inverse()), &frame.inverse());
         let e = surface_error(&placed, &true_scalp, 20_000).expect("areas");
+        // The deformation, fitted in the canonical frame to the raw mesh placed there.
+        let t0 = std::time::Instant::now();
+        let canonical = RawSurface::new(transform_mesh(&raw, &fit.to_canonical), 3);
+        let (field, rep) = fit_deformation(&head, &scalp, &canonical, &DeformOptions::default());
+        let secs = t0.elapsed().as_secs_f64();
+        let placed =
+            transform_mesh(&transform_mesh(&field.mesh(&scalp), &fit.to_canonical.inverse()), &frame.inverse());
+        let d = surface_error(&placed, &true_scalp, 20_000).expect("areas");
         sum_mean += e.mean;
         sum_p95 += e.p95;
+        def_mean += d.mean;
+        def_p95 += d.p95;
+        n += 1.0;
         println!(
-            "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {:.2} | {:.2} |",
+            "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {:.2} · {:.2} | {:.2} · {:.2} | {:.0} %{} | {secs:.1} |",
             deform.scale.x,
             deform.scale.y,
             deform.scale.z,
             fit.to_canonical.scale * frame.scale,
             e.mean * 1e3,
-            e.p95 * 1e3
+            e.p95 * 1e3,
+            d.mean * 1e3,
+            d.p95 * 1e3,
+            100.0 * rep.scalp_on_surface,
+            if rep.bald { ", bald" } else { "" }
         );
     }
-    println!("| mean | | | {:.2} | {:.2} |", sum_mean / heads as f64 * 1e3, sum_p95 / heads as f64 * 1e3);
+    println!(
+        "| mean | | | {:.2} · {:.2} | {:.2} · {:.2} | | |",
+        sum_mean / n * 1e3,
+        sum_p95 / n * 1e3,
+        def_mean / n * 1e3,
+        def_p95 / n * 1e3
+    );
 }

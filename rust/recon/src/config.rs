@@ -175,11 +175,19 @@ pub struct HeadFitParams {
     pub use_cameras: bool,
     /// Fail when more than this fraction of the template's skin lies outside the raw mesh.
     pub max_exposed_fraction: f64,
+    /// Fit the subject's head shape after the similarity ([`crate::head_fit::nonrigid`]). A
+    /// config.json written before the option existed has none and replays without it.
+    #[serde(default)]
+    pub shape: bool,
 }
 
 impl Default for HeadFitParams {
     fn default() -> Self {
-        Self { use_cameras: true, max_exposed_fraction: crate::head_fit::FitOptions::default().max_exposed_fraction }
+        Self {
+            use_cameras: true,
+            max_exposed_fraction: crate::head_fit::FitOptions::default().max_exposed_fraction,
+            shape: true,
+        }
     }
 }
 

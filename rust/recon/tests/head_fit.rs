@@ -9,7 +9,7 @@ use hairrecon_core::formats::read_mesh;
 use hairrecon_core::TriMesh;
 use hairrecon_recon::head_fit::{fit_similarity, FitError, FitOptions, FitResult, HeadTemplate, Similarity};
 
-fn fixture(name: &str) -> TriMesh {
+pub(crate) fn fixture(name: &str) -> TriMesh {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../blend_fixtures").join(name);
     read_mesh(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
@@ -19,7 +19,7 @@ fn template(head: &TriMesh) -> HeadTemplate {
 }
 
 /// SplitMix64.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
     fn next_u64(&mut self) -> u64 {
@@ -40,7 +40,7 @@ impl Rng {
 
 /// A random similarity: rotation uniform on SO(3), scale log-uniform in 0.01..100, offset up to
 /// 10 × scale per axis.
-fn random_similarity(rng: &mut Rng) -> Similarity {
+pub(crate) fn random_similarity(rng: &mut Rng) -> Similarity {
     let q = DQuat::from_xyzw(rng.gauss(), rng.gauss(), rng.gauss(), rng.gauss()).normalize();
     let scale = 10f64.powf(rng.f64() * 4.0 - 2.0);
     let translation = DVec3::new(rng.f64() * 2.0 - 1.0, rng.f64() * 2.0 - 1.0, rng.f64() * 2.0 - 1.0) * 10.0 * scale;
@@ -86,7 +86,7 @@ fn punch_holes(mesh: &TriMesh, holes: usize, fraction: f64, rng: &mut Rng) -> Tr
 }
 
 /// Gaussian noise of `sigma` (metres) on every vertex.
-fn add_noise(mesh: &TriMesh, sigma: f64, rng: &mut Rng) -> TriMesh {
+pub(crate) fn add_noise(mesh: &TriMesh, sigma: f64, rng: &mut Rng) -> TriMesh {
     let vertices = mesh
         .vertices
         .iter()
@@ -95,7 +95,7 @@ fn add_noise(mesh: &TriMesh, sigma: f64, rng: &mut Rng) -> TriMesh {
     TriMesh::new(vertices, mesh.triangles.clone(), None, None).unwrap()
 }
 
-fn moved(mesh: &TriMesh, s: &Similarity) -> TriMesh {
+pub(crate) fn moved(mesh: &TriMesh, s: &Similarity) -> TriMesh {
     let vertices = mesh.vertices.iter().map(|v| s.apply(v.as_dvec3()).as_vec3()).collect();
     TriMesh::new(vertices, mesh.triangles.clone(), None, None).unwrap()
 }
@@ -335,7 +335,7 @@ fn a_head_the_cameras_would_not_frame_is_refused() {
 /// The head under a layer of hair as a raw mesh shows it: the surface pushed out along its normals
 /// by `thickness` over the scalp, the ears, the back of the head and the nape (the hair's outer
 /// surface; the skin under it is not in the mesh), blending to the bare face and throat.
-fn under_hair(head: &TriMesh, scalp: &TriMesh, thickness: f32) -> TriMesh {
+pub(crate) fn under_hair(head: &TriMesh, scalp: &TriMesh, thickness: f32) -> TriMesh {
     let key = |v: Vec3| v.to_array().map(f32::to_bits);
     let on_scalp: std::collections::HashSet<[u32; 3]> = scalp.vertices.iter().map(|&v| key(v)).collect();
     // Covered: the scalp, and everything level with it or behind the ears down to the nape.

@@ -6,6 +6,7 @@
 mod common;
 mod dr;
 mod head_fit;
+mod head_shape;
 mod laplace_columns;
 mod pipeline_dr;
 mod resume;

@@ -12,6 +12,8 @@ use hairrecon_core::{FormatError, TriMesh};
 use thiserror::Error;
 
 use super::compare::{surface_error, SurfaceError};
+use super::nonrigid::fit_deformation;
+use super::surface::RawSurface;
 use super::{fit_similarity, transform_mesh, FitError, FitOptions, FitResult, HeadTemplate};
 
 /// The head the fit registers, in the canonical frame (metres, Z up, the face toward −Y), and its
@@ -105,11 +107,20 @@ pub fn fit_files(
 ) -> Result<(FitResult, TriMesh, TriMesh), CaptureFitError> {
     let raw = read_mesh(raw_path)?;
     let points = HeadTemplate::new(&template.head, Some(&template.scalp), 2000, 7).ok_or(CaptureFitError::Template)?;
-    let fit = fit_similarity(&points, &raw, cameras, opts)
+    let mut fit = fit_similarity(&points, &raw, cameras, opts)
         .map_err(|source| CaptureFitError::Fit { raw: raw_path.into(), source })?;
+    // The subject's shape, fitted in the canonical frame to the raw mesh placed there.
+    let (head, scalp) = match &opts.deform {
+        Some(d) => {
+            let placed = RawSurface::new(transform_mesh(&raw, &fit.to_canonical), opts.normal_smoothing);
+            let (field, report) = fit_deformation(&template.head, &template.scalp, &placed, d);
+            fit.shape = Some(report);
+            (field.mesh(&template.head), field.mesh(&template.scalp))
+        }
+        None => (template.head.clone(), template.scalp.clone()),
+    };
     let to_capture = fit.to_canonical.inverse();
-    let (head, scalp) = (transform_mesh(&template.head, &to_capture), transform_mesh(&template.scalp, &to_capture));
-    Ok((fit, head, scalp))
+    Ok((fit, transform_mesh(&head, &to_capture), transform_mesh(&scalp, &to_capture)))
 }
 
 impl CaptureFit {
@@ -163,6 +174,14 @@ pub fn fit_json(fit: &FitResult) -> serde_json::Value {
         "exposed_fraction": fit.score.outside,
         "cost": fit.score.cost,
         "runner_up_cost": fit.runner_up_cost,
+        "shape": fit.shape.map(|r| serde_json::json!({
+            "skin_rms_mm": r.skin_rms * 1e3,
+            "skin_matched_fraction": r.skin_matched,
+            "scalp_matched_fraction": r.scalp_matched,
+            "scalp_on_surface_fraction": r.scalp_on_surface,
+            "bald": r.bald,
+            "max_displacement_mm": r.max_displacement * 1e3,
+        })),
     })
 }
 

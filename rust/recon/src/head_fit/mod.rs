@@ -25,6 +25,7 @@ pub mod capture_fit;
 pub mod coarse;
 pub mod compare;
 pub mod icp;
+pub mod nonrigid;
 pub mod score;
 pub mod surface;
 pub mod template;
@@ -79,6 +80,9 @@ pub struct FitOptions {
     /// gyration, as a fraction of the image height, the median over the views) must lie in this
     /// range; poses outside it lose to any inside, and a fit outside it fails.
     pub framing: (f64, f64),
+    /// After the similarity, the template's shape fitted to the subject's ([`nonrigid`]); `None`
+    /// keeps the template's own shape, scaled and turned.
+    pub deform: Option<nonrigid::DeformOptions>,
 }
 
 impl Default for FitOptions {
@@ -98,6 +102,7 @@ impl Default for FitOptions {
             clean_fraction: 0.9,
             normal_smoothing: 3,
             framing: (0.1, 3.0),
+            deform: Some(nonrigid::DeformOptions::default()),
         }
     }
 }
@@ -115,6 +120,8 @@ pub struct FitResult {
     /// The best cost of a refined pose whose rotation differs from the winner's by more than 30°
     /// (how clearly the winner won; `None` when every refined pose agreed).
     pub runner_up_cost: Option<f64>,
+    /// The shape's fit after the similarity, when one ran ([`FitOptions::deform`]).
+    pub shape: Option<nonrigid::DeformReport>,
 }
 
 /// Why no similarity was found.
@@ -261,6 +268,7 @@ pub fn fit_similarity(
         residual_mm: score.rms_on_surface * 1e3,
         score,
         runner_up_cost: runner_up.map(|c| c.score.cost),
+        shape: None,
     })
 }
 

@@ -65,7 +65,12 @@ pub fn run(
 ) -> Result<(HeadOut, [Option<hairrecon_core::TriMesh>; 2]), ReconError> {
     let cap = ctx.capture;
     ctx.progress.update("head", 0.0, "fitting the head template to the raw mesh");
-    let opts = FitOptions { max_exposed_fraction: cfg.head_fit.max_exposed_fraction, ..FitOptions::default() };
+    let defaults = FitOptions::default();
+    let opts = FitOptions {
+        max_exposed_fraction: cfg.head_fit.max_exposed_fraction,
+        deform: defaults.deform.clone().filter(|_| cfg.head_fit.shape),
+        ..defaults
+    };
     let cameras: Vec<_> = cap.views.iter().map(|v| v.camera).collect();
     let cams = cfg.head_fit.use_cameras.then_some(cameras.as_slice());
     let (fit, head, scalp) = fit_files(&cap.raw_mesh, cams, &Template::bundled(), &opts).map_err(|e| {
