@@ -151,10 +151,14 @@ impl Deformation {
         p + self.displacement(p)
     }
 
-    /// A mesh moved by the field (its normals dropped: they are recomputed from the triangles).
+    /// A mesh moved by the field; a mesh with vertex normals gets its moved surface's.
     pub fn mesh(&self, m: &TriMesh) -> TriMesh {
         let vertices = m.vertices.par_iter().map(|v| self.apply(v.as_dvec3()).as_vec3()).collect();
-        TriMesh { vertices, triangles: m.triangles.clone(), normals: None, uvs: m.uvs.clone() }
+        let mut out = TriMesh { vertices, triangles: m.triangles.clone(), normals: None, uvs: m.uvs.clone() };
+        if m.normals.is_some() {
+            out.normals = Some(out.compute_vertex_normals());
+        }
+        out
     }
 
     /// The largest displacement over `points`.
