@@ -23,7 +23,8 @@
 //!   step bringing more of the scalp near the hair's surface. Only when, after that fit, most of
 //!   the scalp ([`DeformOptions::bald_fraction`]) lies on the raw surface (a bald or shaved head),
 //!   the levels run again with the scalp fitted as skin is;
-//! - the farthest [`DeformOptions::keep`] share of the matches is trimmed (holes, a backdrop).
+//! - only the nearest [`DeformOptions::keep`] share of the matches counts; the farthest are
+//!   trimmed (holes, a backdrop).
 
 use glam::{DMat3, DVec3};
 use hairrecon_core::TriMesh;
