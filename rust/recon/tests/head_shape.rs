@@ -6,7 +6,7 @@
 
 use glam::DVec3;
 use hairrecon_core::TriMesh;
-use hairrecon_recon::head_fit::compare::surface_error;
+use hairrecon_recon::head_fit::compare::{surface_error, SurfaceError};
 use hairrecon_recon::head_fit::nonrigid::{fit_deformation, DeformOptions, DeformReport};
 use hairrecon_recon::head_fit::surface::RawSurface;
 use hairrecon_recon::head_fit::{fit_similarity, transform_mesh, FitOptions, HeadTemplate};
@@ -46,6 +46,13 @@ fn fit_both(
     (back(&scalp), back(&field.mesh(&scalp)), report)
 }
 
+/// A fitted scalp's distance to the true one, printed.
+fn scalp_error(what: &str, fitted: &TriMesh, truth: &TriMesh) -> SurfaceError {
+    let e = surface_error(fitted, truth, 20_000).unwrap();
+    println!("{what}: scalp {:.2} · {:.2} mm", e.mean * 1e3, e.p95 * 1e3);
+    e
+}
+
 #[test]
 fn a_bald_head_of_other_proportions_is_fitted_closer_than_by_the_similarity() {
     let (head, scalp) = (fixture("head.ply"), fixture("scalp.ply"));
@@ -55,15 +62,7 @@ fn a_bald_head_of_other_proportions_is_fitted_closer_than_by_the_similarity() {
     let raw = moved(&add_noise(&reshaped(&head, scale, bump), 0.0005, &mut rng), &truth);
     let true_scalp = reshaped(&scalp, scale, bump);
     let (rigid, shaped, rep) = fit_both(&raw, &truth, &DeformOptions::default());
-    let r = surface_error(&rigid, &true_scalp, 20_000).unwrap();
-    let s = surface_error(&shaped, &true_scalp, 20_000).unwrap();
-    println!(
-        "similarity {:.2} · {:.2} mm, shape {:.2} · {:.2} mm",
-        r.mean * 1e3,
-        r.p95 * 1e3,
-        s.mean * 1e3,
-        s.p95 * 1e3
-    );
+    let (r, s) = (scalp_error("similarity", &rigid, &true_scalp), scalp_error("shape", &shaped, &true_scalp));
     // The similarity cannot take the proportions or the bump: millimetres off.
     assert!(r.mean > 2.5e-3, "{r:?}");
     assert!(s.mean < 1.0e-3 && s.p95 < 5.0e-3, "{s:?}");
@@ -79,15 +78,8 @@ fn a_head_under_hair_keeps_its_scalp_under_the_hair() {
     let truth = random_similarity(&mut rng);
     let raw = moved(&add_noise(&under_hair(&head, &scalp, 0.01), 0.0005, &mut rng), &truth);
     let (rigid, shaped, rep) = fit_both(&raw, &truth, &DeformOptions::default());
-    let r = surface_error(&rigid, &true_scalp, 20_000).unwrap();
-    let s = surface_error(&shaped, &true_scalp, 20_000).unwrap();
-    println!(
-        "similarity {:.2} · {:.2} mm, shape {:.2} · {:.2} mm",
-        r.mean * 1e3,
-        r.p95 * 1e3,
-        s.mean * 1e3,
-        s.p95 * 1e3
-    );
+    scalp_error("similarity", &rigid, &true_scalp);
+    let s = scalp_error("shape", &shaped, &true_scalp);
     assert!(!rep.bald && rep.scalp_on_surface < 0.2, "{rep:?}");
     // Not swollen out to the hair's surface (1 cm out), nor turned by the skin the hair leaves.
     assert!(s.mean < 1.0e-3 && s.p95 < 2.0e-3, "{s:?}");

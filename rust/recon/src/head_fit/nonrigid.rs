@@ -32,7 +32,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::icp::Target;
-use super::template::sample_surface_normals;
+use super::template::{sample_surface_normals, scalp_triangles};
 
 /// The parameters of [`fit_deformation`]. Lengths in metres (the canonical frame).
 #[derive(Debug, Clone, PartialEq)]
@@ -240,10 +240,8 @@ pub fn fit_deformation(
     raw: &(impl Target + ?Sized),
     opts: &DeformOptions,
 ) -> (Deformation, DeformReport) {
-    let key = |v: glam::Vec3| v.to_array().map(f32::to_bits);
-    let scalp_vertices: std::collections::HashSet<[u32; 3]> = scalp.vertices.iter().map(|&v| key(v)).collect();
-    let is_scalp = |i: usize| head.corners(i).iter().all(|&v| scalp_vertices.contains(&key(v)));
-    let skin = sample_surface_normals(head, |i| !is_scalp(i), opts.skin_samples, 0x5eed_5c1e);
+    let on_scalp = scalp_triangles(head, scalp);
+    let skin = sample_surface_normals(head, |i| !on_scalp[i], opts.skin_samples, 0x5eed_5c1e);
     let top = sample_surface_normals(scalp, |_| true, opts.scalp_samples, 0x5eed_5ca1);
     let nodes = spread_nodes(&[head, scalp], opts.node_spacing);
     let centre = if head.vertices.is_empty() {

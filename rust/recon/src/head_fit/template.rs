@@ -100,6 +100,14 @@ pub(crate) fn sample_surface_normals(
         .collect()
 }
 
+/// Per triangle of `head`, whether it belongs to `scalp`: its three corners are scalp vertices,
+/// matched by position.
+pub(crate) fn scalp_triangles(head: &TriMesh, scalp: &TriMesh) -> Vec<bool> {
+    let key = |v: glam::Vec3| v.to_array().map(f32::to_bits);
+    let scalp_vertices: std::collections::HashSet<[u32; 3]> = scalp.vertices.iter().map(|&v| key(v)).collect();
+    (0..head.triangles.len()).map(|i| head.corners(i).iter().all(|&v| scalp_vertices.contains(&key(v)))).collect()
+}
+
 /// The template of [`super::fit_similarity`].
 #[derive(Debug, Clone)]
 pub struct HeadTemplate {
@@ -118,10 +126,8 @@ impl HeadTemplate {
     /// has no area.
     pub fn new(head: &TriMesh, scalp: Option<&TriMesh>, samples: usize, seed: u64) -> Option<Self> {
         let stats = SurfaceStats::of(head)?;
-        let key = |v: glam::Vec3| v.to_array().map(f32::to_bits);
-        let scalp_vertices: std::collections::HashSet<[u32; 3]> =
-            scalp.map(|s| s.vertices.iter().map(|&v| key(v)).collect()).unwrap_or_default();
-        let is_skin = |i: usize| !head.corners(i).iter().all(|&v| scalp_vertices.contains(&key(v)));
+        let on_scalp = scalp.map(|s| scalp_triangles(head, s)).unwrap_or_default();
+        let is_skin = |i: usize| !on_scalp.get(i).copied().unwrap_or(false);
         let (points, normals) = sample_surface_normals(head, is_skin, samples.max(16), seed).into_iter().unzip();
         let t = Self { points, normals, stats };
         (!t.points.is_empty()).then_some(t)
