@@ -123,18 +123,6 @@ fn wendland(r: f64) -> f64 {
 }
 
 impl Deformation {
-    /// No displacement.
-    pub fn identity() -> Self {
-        Self {
-            centre: DVec3::ZERO,
-            affine: DMat3::ZERO,
-            shift: DVec3::ZERO,
-            nodes: Vec::new(),
-            weights: Vec::new(),
-            support: 1.0,
-        }
-    }
-
     /// The displacement at `p`.
     pub fn displacement(&self, p: DVec3) -> DVec3 {
         let mut u = self.affine * (p - self.centre) + self.shift;
