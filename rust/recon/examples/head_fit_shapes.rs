@@ -2,10 +2,10 @@
 //! the bundled head scaled by up to ±10 % per axis and bent by a smooth random displacement field
 //! (up to 1 cm along the normal), with 0.5 mm noise, moved into a random similarity frame; the
 //! fitted scalp (the template's, placed by the fit) against the deformed head's true scalp, in
-//! millimetres. Prints one row per head and the mean.
+//! millimetres. Prints one row per head (with the fitted frame's rotation error) and the mean.
 //!
 //! ```text
-//! cargo run --release -p hairrecon-recon --example head_fit_shapes [HEADS]
+//! cargo run --release -p hairrecon-recon --example head_fit_shapes [HEADS [FIRST]] [--cut-crown]
 //! ```
 
 use std::path::PathBuf;
@@ -75,8 +75,8 @@ fn main() {
     let head = read_mesh(dir.join("head.ply")).expect("head.ply");
     let scalp = read_mesh(dir.join("scalp.ply")).expect("scalp.ply");
     let template = HeadTemplate::new(&head, Some(&scalp), 2000, 7).expect("template");
-    println!("| head | axis scales | fit scale | similarity: scalp mean · p95 mm | deformed: scalp mean · p95 mm | scalp on the mesh | deform s |");
-    println!("|---:|---|---:|---:|---:|---:|---:|");
+    println!("| head | axis scales | fit scale | rotation ° | similarity: scalp mean · p95 mm | deformed: scalp mean · p95 mm | scalp on the mesh | deform s |");
+    println!("|---:|---|---:|---:|---:|---:|---:|---:|");
     let (mut sum_mean, mut sum_p95, mut def_mean, mut def_p95, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for seed in first..first + heads {
         let mut rng = Rng(seed * 7919 + 1);
@@ -122,8 +122,11 @@ fn main() {
         def_mean += d.mean;
         def_p95 += d.p95;
         n += 1.0;
+        // The fitted frame against the true one: raw → canonical after canonical → raw.
+        let r = fit.to_canonical.rotation * frame.rotation;
+        let angle = ((r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
         println!(
-            "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {:.2} · {:.2} | {:.2} · {:.2} | {:.0} %{} | {secs:.1} |",
+            "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {angle:.1} | {:.2} · {:.2} | {:.2} · {:.2} | {:.0} %{} | {secs:.1} |",
             deform.scale.x,
             deform.scale.y,
             deform.scale.z,
@@ -137,7 +140,7 @@ fn main() {
         );
     }
     println!(
-        "| mean | | | {:.2} · {:.2} | {:.2} · {:.2} | | |",
+        "| mean | | | | {:.2} · {:.2} | {:.2} · {:.2} | | |",
         sum_mean / n * 1e3,
         sum_p95 / n * 1e3,
         def_mean / n * 1e3,
