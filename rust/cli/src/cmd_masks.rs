@@ -48,6 +48,10 @@ pub struct MasksArgs {
     /// Averaging passes of the hair probability over the raw mesh.
     #[arg(long, default_value_t = MaskOptions::default().region.smoothing)]
     pub smoothing: usize,
+    /// How far beyond the silhouette (mm at the head's distance) to look for hair the raw mesh
+    /// left out, in the photo's blend of hair and what lies behind; 0 turns it off.
+    #[arg(long, default_value_t = MaskOptions::default().beyond.reach_mm)]
+    pub beyond_mm: f32,
 }
 
 pub fn run(args: MasksArgs) -> CmdResult {
@@ -70,6 +74,7 @@ pub fn run(args: MasksArgs) -> CmdResult {
         ..MaskOptions::default()
     };
     opts.region.smoothing = args.smoothing;
+    opts.beyond.reach_mm = args.beyond_mm;
     let bars = Bars::new();
     let set = make_masks(&working, &opts, &bars);
     bars.finish();

@@ -4,8 +4,8 @@
 
 use glam::{DMat3, DVec3, Vec3};
 
-/// CIE L*a*b* (D65 white) of an sRGB-encoded colour with channels in [0, 1].
-pub fn srgb_to_lab(c: [f32; 3]) -> Vec3 {
+/// Linear RGB (light, as a camera adds it) of an sRGB-encoded colour with channels in [0, 1].
+pub fn srgb_to_linear(c: [f32; 3]) -> Vec3 {
     let lin = |v: f32| {
         let v = v.clamp(0.0, 1.0);
         if v <= 0.04045 {
@@ -14,7 +14,12 @@ pub fn srgb_to_lab(c: [f32; 3]) -> Vec3 {
             ((v + 0.055) / 1.055).powf(2.4)
         }
     };
-    let (r, g, b) = (lin(c[0]), lin(c[1]), lin(c[2]));
+    Vec3::new(lin(c[0]), lin(c[1]), lin(c[2]))
+}
+
+/// CIE L*a*b* (D65 white) of an sRGB-encoded colour with channels in [0, 1].
+pub fn srgb_to_lab(c: [f32; 3]) -> Vec3 {
+    let Vec3 { x: r, y: g, z: b } = srgb_to_linear(c);
     let x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047;
     let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
     let z = (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.08883;

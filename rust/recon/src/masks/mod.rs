@@ -5,7 +5,9 @@
 //!    ([`render::seen`]: in front of the camera, facing it, not hidden by the raw mesh), against
 //!    colour models learned from the capture itself ([`colour`]).
 //! 2. **Its silhouette in each view** ([`render`]): one ray per pixel against the raw mesh and the
-//!    fitted head; a pixel takes the region's probability where its ray meets the raw mesh.
+//!    fitted head; a pixel takes the region's probability where its ray meets the raw mesh. Near
+//!    the silhouette, a pixel whose ray meets nothing takes the hair's share of its colour, a blend
+//!    of the hair's and the background's ([`beyond`]: hair the raw mesh left out).
 //! 3. **Alpha** ([`trimap`], [`matting`]): a trimap of that silhouette, its band as wide as a few
 //!    millimetres are at the head's distance, and closed-form matting against the photo inside the
 //!    band, with the silhouette as a weak prior.
@@ -13,6 +15,7 @@
 //! [`quality`] scores masks against a synthetic capture's own; [`capture_masks`] writes them into
 //! a capture (`masks/`, `hair_region.ply`), keeping masks a user gave.
 
+pub mod beyond;
 pub mod capture_masks;
 pub mod colour;
 pub mod matting;
@@ -29,6 +32,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::progress::{Cancelled, Progress};
+use beyond::BeyondOptions;
 use matting::{closed_form_matting, MattingError, MattingOptions};
 use region::{RegionOptions, RegionSummary};
 use render::{Surface, ViewHits};
@@ -39,6 +43,9 @@ use trimap::Trimap;
 #[serde(default, deny_unknown_fields)]
 pub struct MaskOptions {
     pub region: RegionOptions,
+    /// Hair beyond the raw mesh ([`beyond`]); a configuration without it replays without it.
+    #[serde(default = "BeyondOptions::off")]
+    pub beyond: BeyondOptions,
     /// Weight of each pixel's own colour (its hair-against-rest log-likelihood ratio under the
     /// region's colour models) added to the region's log-odds; 0 renders the region alone.
     pub pixel_colour: f32,
@@ -60,6 +67,7 @@ impl Default for MaskOptions {
     fn default() -> Self {
         Self {
             region: RegionOptions::default(),
+            beyond: BeyondOptions::default(),
             pixel_colour: 0.5,
             visibility_mm: 3.0,
             band_mm: 12.0,
@@ -137,21 +145,29 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
 
     progress.update(STAGE, 0.4, "the raw mesh's colours");
     let tol = opts.visibility_mm * 1e-3;
-    let colours: Vec<Option<Vec3>> = raw
+    // Per vertex, its mean colour over the views that see it: L*a*b* for the colour models,
+    // linear RGB for the blends of hair and what lies behind it.
+    let (colours, linear): (Vec<Option<Vec3>>, Vec<Option<Vec3>>) = raw
         .vertices
         .par_iter()
         .zip(normals.par_iter())
         .map(|(&p, &n)| {
-            let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+            let (mut lab, mut rgb, mut weight) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
             for (k, view) in capture.views.iter().enumerate() {
                 if let Some((pixel, facing)) = render::seen(&view.camera, &hits[k], p, n, tol) {
-                    sum += facing * colour::srgb_to_lab(bilinear(&images[k], pixel));
+                    let c = bilinear(&images[k], pixel);
+                    lab += facing * colour::srgb_to_lab(c);
+                    rgb += facing * colour::srgb_to_linear(c);
                     weight += facing;
                 }
             }
-            (weight > 0.0).then(|| sum / weight)
+            if weight > 0.0 {
+                (Some(lab / weight), Some(rgb / weight))
+            } else {
+                (None, None)
+            }
         })
-        .collect();
+        .unzip();
     progress.check()?;
 
     progress.update(STAGE, 0.5, "the hair region");
@@ -167,11 +183,20 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let mut alphas = Vec::with_capacity(n_views);
     for (k, view) in capture.views.iter().enumerate() {
         progress.update(STAGE, 0.55 + 0.45 * k as f32 / n_views as f32, &format!("view {}: alpha", view.name));
-        let silhouette = silhouette(&hits[k], raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
+        let mut silhouette = silhouette(&hits[k], raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
+        // Pixels per millimetre at the head's distance.
+        let px_per_mm = 1e-3 * view.camera.k().col(0).x / view.camera.project(centre).map_or(1.0, |p| p.depth);
+        let behind = beyond::Behind { raw, colours: &linear };
+        beyond::extend(
+            &mut silhouette.data,
+            &hits[k],
+            &images[k],
+            &behind,
+            opts.beyond.reach_mm * px_per_mm,
+            &opts.beyond,
+        );
         let alpha = if opts.matting {
-            let depth = view.camera.project(centre).map_or(1.0, |p| p.depth);
-            let fx = view.camera.k().col(0).x;
-            let band = (opts.band_mm * 1e-3 * fx / depth).max(opts.min_band_px);
+            let band = (opts.band_mm * px_per_mm).max(opts.min_band_px);
             let trimap = Trimap::from_probability(&silhouette.data, silhouette.width, silhouette.height, band);
             let data = closed_form_matting(&images[k], &trimap, Some(&silhouette.data), &matting_opts)
                 .map_err(|source| MaskError::Matting { view: view.name.clone(), source })?;
@@ -240,6 +265,19 @@ fn bilinear(img: &RgbImage32, p: Vec2) -> [f32; 3] {
 
 #[cfg(test)]
 pub(crate) mod tests {
+    use super::*;
+
+    #[test]
+    fn options_written_before_the_hair_beyond_the_mesh_replay_without_it() {
+        let mut old = serde_json::to_value(MaskOptions::default()).unwrap();
+        old.as_object_mut().unwrap().remove("beyond");
+        let back: MaskOptions = serde_json::from_value(old).unwrap();
+        assert_eq!(back.beyond.reach_mm, 0.0);
+        assert!(MaskOptions::default().beyond.reach_mm > 0.0);
+        let now: MaskOptions = serde_json::from_value(serde_json::to_value(MaskOptions::default()).unwrap()).unwrap();
+        assert_eq!(now, MaskOptions::default());
+    }
+
     /// A small linear congruential generator (Knuth's MMIX constants): reproducible test data
     /// without the rand crate.
     pub(crate) struct Lcg(pub(crate) u64);
