@@ -6,8 +6,8 @@
 //!    colour models learned from the capture itself ([`colour`]).
 //! 2. **Its silhouette in each view** ([`render`]): one ray per pixel against the raw mesh and the
 //!    fitted head; a pixel takes the region's probability where its ray meets the raw mesh. Near
-//!    the silhouette, a pixel whose ray meets nothing takes the hair's share of its colour, a blend
-//!    of the hair's and the background's ([`beyond`]: hair the raw mesh left out).
+//!    the silhouette, a pixel outside the hair takes the hair's share of its colour, read as a
+//!    blend of the hair's and what lies behind it ([`beyond`]: hair the raw mesh left out).
 //! 3. **Alpha** ([`trimap`], [`matting`]): a trimap of that silhouette, its band as wide as a few
 //!    millimetres are at the head's distance, and closed-form matting against the photo inside the
 //!    band, with the silhouette as a weak prior.
@@ -180,13 +180,13 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
         MattingOptions { epsilon: opts.matting_epsilon, prior_weight: opts.matting_prior, ..MattingOptions::default() };
     let centre = raw_bvh.mesh().bbox();
     let centre = (centre.0 + centre.1) * 0.5;
+    let behind = beyond::Behind { raw, colours: &linear };
     let mut alphas = Vec::with_capacity(n_views);
     for (k, view) in capture.views.iter().enumerate() {
         progress.update(STAGE, 0.55 + 0.45 * k as f32 / n_views as f32, &format!("view {}: alpha", view.name));
         let mut silhouette = silhouette(&hits[k], raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
         // Pixels per millimetre at the head's distance.
         let px_per_mm = 1e-3 * view.camera.k().col(0).x / view.camera.project(centre).map_or(1.0, |p| p.depth);
-        let behind = beyond::Behind { raw, colours: &linear };
         beyond::extend(
             &mut silhouette.data,
             &hits[k],
