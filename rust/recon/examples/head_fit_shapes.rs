@@ -122,9 +122,8 @@ fn main() {
         def_mean += d.mean;
         def_p95 += d.p95;
         n += 1.0;
-        // The fitted frame against the true one: raw → canonical after canonical → raw.
-        let r = fit.to_canonical.rotation * frame.rotation;
-        let angle = ((r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+        // The fitted frame against the true one (raw → canonical, the inverse of `frame`).
+        let angle = fit.to_canonical.rotation_angle_to(&frame.inverse());
         println!(
             "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {angle:.1} | {:.2} · {:.2} | {:.2} · {:.2} | {:.0} %{} | {secs:.1} |",
             deform.scale.x,

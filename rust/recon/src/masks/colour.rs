@@ -19,7 +19,11 @@ pub fn srgb_to_linear(c: [f32; 3]) -> Vec3 {
 
 /// CIE L*a*b* (D65 white) of an sRGB-encoded colour with channels in [0, 1].
 pub fn srgb_to_lab(c: [f32; 3]) -> Vec3 {
-    let Vec3 { x: r, y: g, z: b } = srgb_to_linear(c);
+    linear_to_lab(srgb_to_linear(c))
+}
+
+/// CIE L*a*b* (D65 white) of a linear RGB colour ([`srgb_to_linear`]).
+pub fn linear_to_lab(Vec3 { x: r, y: g, z: b }: Vec3) -> Vec3 {
     let x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047;
     let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
     let z = (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.08883;

@@ -155,9 +155,9 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
             let (mut lab, mut rgb, mut weight) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
             for (k, view) in capture.views.iter().enumerate() {
                 if let Some((pixel, facing)) = render::seen(&view.camera, &hits[k], p, n, tol) {
-                    let c = bilinear(&images[k], pixel);
-                    lab += facing * colour::srgb_to_lab(c);
-                    rgb += facing * colour::srgb_to_linear(c);
+                    let c = colour::srgb_to_linear(bilinear(&images[k], pixel));
+                    lab += facing * colour::linear_to_lab(c);
+                    rgb += facing * c;
                     weight += facing;
                 }
             }
