@@ -398,3 +398,26 @@ fn fits_a_head_under_hair_on_a_torso() {
     assert!(fit.score.inside > 0.3, "most of the skin is under the hair: {:?}", fit.score);
     assert!(rot < 1.0 && scale < 0.01 && pos < POSITION_TOL, "rotation {rot}°, scale {scale}, position {pos}");
 }
+
+#[test]
+fn fits_a_head_under_hair_in_a_turtleneck() {
+    // Hair 2 cm thick, a torso, and a collar (a box around the neck from the shoulders to the jaw):
+    // the raw mesh shows skin on the face alone, and the collar would hold a larger head.
+    let head = fixture("head.ply");
+    let scalp = fixture("scalp.ply");
+    let hair = under_hair(&head, &scalp, 0.02);
+    let torso = boxed(Vec3::new(-0.225, -0.125, -0.52), Vec3::new(0.225, 0.125, -0.17), 12);
+    let collar = boxed(Vec3::new(-0.075, -0.035, -0.17), Vec3::new(0.075, 0.12, -0.09), 12);
+    for seed in [21, 22, 23] {
+        let mut rng = Rng(seed);
+        let truth = random_similarity(&mut rng);
+        let raw = moved(&add_noise(&merged(&[&hair, &torso, &collar]), 0.0005, &mut rng), &truth);
+        let fit = fit_similarity(&template(&head), &raw, Some(&ring_cameras(&truth)), &FitOptions::default()).unwrap();
+        let (rot, scale, pos) = errors(&fit, &truth, &head);
+        println!("turtleneck {seed}: rotation {rot:.3}°, scale {:.3}%, position {:.2} mm", scale * 100.0, pos * 1e3);
+        assert!(
+            rot < 1.0 && scale < 0.01 && pos < POSITION_TOL,
+            "seed {seed}: rotation {rot}°, scale {scale}, position {pos}"
+        );
+    }
+}

@@ -117,7 +117,20 @@ pub struct HeadTemplate {
     pub(crate) normals: Vec<DVec3>,
     /// The whole head's surface statistics (scale and centre prior).
     pub(crate) stats: SurfaceStats,
+    /// As many points again on the face alone ([`FACE_FACING`], [`FACE_LOWEST`]), with their
+    /// outward unit normals.
+    pub(crate) face_points: Vec<DVec3>,
+    pub(crate) face_normals: Vec<DVec3>,
 }
+
+/// A template point is on the face when its outward normal turns at least this far toward the
+/// front (its cosine with −Y, the canonical frame's facing direction)...
+pub const FACE_FACING: f64 = 0.5;
+
+/// ...and it lies above the chin: higher than this many radii of gyration under the head's centre
+/// (on the bundled head, 8 cm under its centre, about the jaw line; the front of the neck below is
+/// what a collar covers).
+pub const FACE_LOWEST: f64 = 0.7;
 
 impl HeadTemplate {
     /// `samples` seeded points of `head` (canonical frame, metres) without the triangles of `scalp`
@@ -128,8 +141,16 @@ impl HeadTemplate {
         let stats = SurfaceStats::of(head)?;
         let on_scalp = scalp.map(|s| scalp_triangles(head, s)).unwrap_or_default();
         let is_skin = |i: usize| !on_scalp.get(i).copied().unwrap_or(false);
-        let (points, normals) = sample_surface_normals(head, is_skin, samples.max(16), seed).into_iter().unzip();
-        let t = Self { points, normals, stats };
+        let (points, normals): (Vec<DVec3>, Vec<DVec3>) =
+            sample_surface_normals(head, is_skin, samples.max(16), seed).into_iter().unzip();
+        let chin = stats.centre.z - FACE_LOWEST * stats.radius;
+        let on_face = |i: usize| {
+            let centroid = head.corners(i).iter().map(|c| c.as_dvec3()).sum::<DVec3>() / 3.0;
+            is_skin(i) && head.face_normal(i).as_dvec3().dot(DVec3::NEG_Y) >= FACE_FACING && centroid.z > chin
+        };
+        let (face_points, face_normals) =
+            sample_surface_normals(head, on_face, samples.max(16), seed ^ 0xface).into_iter().unzip();
+        let t = Self { points, normals, stats, face_points, face_normals };
         (!t.points.is_empty()).then_some(t)
     }
 
