@@ -16,6 +16,9 @@
 //! 4. If that residual is too high (a backdrop or a torso made the scale and centre priors wrong),
 //!    the search repeats over a ladder of smaller scales and the places where the surface is
 //!    densest at a head's size. A fit whose residual stays too high is an error that says so.
+//! 5. Under hair and clothes, the winner is tried at other scales about its centre and its face,
+//!    then refined by ICP on the face's points alone (the one large patch of skin a capture
+//!    shows; the clothes cannot hold it), each kept only when its cost says so.
 //!
 //! The template points (template → raw closest points, never the other way) make the fit blind to
 //! what the raw mesh has beyond the head: hair, shoulders, a chair. Trimming ignores what the
