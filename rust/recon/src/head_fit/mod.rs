@@ -449,7 +449,8 @@ impl Search<'_> {
     /// all the skin lets the clothes hold a head a tenth too large (the collar takes the neck, the
     /// trimming drops the face's misfit). So the best pose is refined once more by ICP on the
     /// face's points alone ([`template::FACE_FACING`]), keeping [`FACE_KEEP`] of them; the result
-    /// replaces the pose when it passes and costs less on all the points.
+    /// replaces the pose when it passes and costs at most
+    /// [`FACE_SLACK`] more on all the points.
     fn refine_on_face(&self, best: Candidate, opts: &FitOptions) -> Candidate {
         let (points, normals) = (&self.template.face_points, &self.template.face_normals);
         if points.len() < 3 {

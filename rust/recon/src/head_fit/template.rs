@@ -123,11 +123,11 @@ pub struct HeadTemplate {
     pub(crate) face_normals: Vec<DVec3>,
 }
 
-/// A template point is on the face when its outward normal turns at least this far toward the
+/// A template triangle is on the face when its outward normal turns at least this far toward the
 /// front (its cosine with −Y, the canonical frame's facing direction)...
 pub const FACE_FACING: f64 = 0.5;
 
-/// ...and it lies above the chin: higher than this many radii of gyration under the head's centre
+/// ...and its centroid lies above the chin: higher than this many radii of gyration under the head's centre
 /// (on the bundled head, 8 cm under its centre, about the jaw line; the front of the neck below is
 /// what a collar covers).
 pub const FACE_LOWEST: f64 = 0.7;
