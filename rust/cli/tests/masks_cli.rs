@@ -145,6 +145,14 @@ fn masks_match_the_hair_shell_and_never_touch_the_backdrop() {
     assert!(f(s, "mean_iou") >= 0.95 && f(s, "min_iou") >= 0.9, "{s}");
     assert!(f(s, "max_off_hair") <= 0.01, "{s}");
     assert!(f(h, "mean_iou") >= 0.9, "{h}");
+    // The phases' times add up to no more than the whole.
+    let phases = |r: &serde_json::Value| -> Vec<f64> {
+        ["rays", "region", "silhouettes", "matting"].iter().map(|k| r["phase_seconds"][k].as_f64().unwrap()).collect()
+    };
+    for r in [&matted, &hard] {
+        let (p, total) = (phases(r), r["seconds"].as_f64().unwrap());
+        assert!(p.iter().all(|&t| t >= 0.0) && p.iter().sum::<f64>() <= total + 0.2, "{p:?} of {total}");
+    }
     // The hair colours the region learned are the shell's brown (L* about 25 to 45, b* > a* > 0).
     let hair = matted["region"]["hair_colours"].as_array().unwrap();
     let heaviest = hair.iter().max_by(|a, b| a[3].as_f64().partial_cmp(&b[3].as_f64()).unwrap()).unwrap();

@@ -122,7 +122,13 @@ pub fn report(
         "region": set.summary,
         "mean_coverage": coverage.iter().sum::<f64>() / coverage.len().max(1) as f64,
         "options": opts,
-        "seconds": (seconds * 10.0).round() / 10.0,
+        "seconds": round1(seconds),
+        "phase_seconds": {
+            "rays": round1(set.seconds.rays),
+            "region": round1(set.seconds.region),
+            "silhouettes": round1(set.seconds.silhouettes),
+            "matting": round1(set.seconds.matting),
+        },
     });
     if let Some(scores) = scores {
         let n = scores.len().max(1) as f64;
@@ -138,4 +144,8 @@ pub fn report(
         });
     }
     r
+}
+
+fn round1(x: f64) -> f64 {
+    (x * 10.0).round() / 10.0
 }

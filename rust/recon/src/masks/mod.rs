@@ -105,6 +105,21 @@ pub struct MaskSet {
     /// Alpha of each view, in the capture's order.
     pub alphas: Vec<GrayImage32>,
     pub summary: RegionSummary,
+    /// Where the time went.
+    pub seconds: MaskTimes,
+}
+
+/// Wall-clock seconds of each phase of [`make_masks`].
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct MaskTimes {
+    /// Reading the meshes and the photos, and one ray per pixel of every view.
+    pub rays: f64,
+    /// The raw mesh's colours and the hair region.
+    pub region: f64,
+    /// The silhouettes and the hair beyond the raw mesh.
+    pub silhouettes: f64,
+    /// The trimaps and matting (or the silhouettes' thresholds without matting).
+    pub matting: f64,
 }
 
 /// Makes masks for every view of `capture` (in the canonical frame, with a head and a scalp).
@@ -113,6 +128,12 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let dir = capture.dir.display().to_string();
     let (Some(head_path), Some(scalp_path)) = (&capture.head_mesh, &capture.scalp_mesh) else {
         return Err(MaskError::NoHead { dir });
+    };
+    let mut seconds = MaskTimes::default();
+    let mut clock = std::time::Instant::now();
+    let mut lap = |total: &mut f64| {
+        *total += clock.elapsed().as_secs_f64();
+        clock = std::time::Instant::now();
     };
     progress.update(STAGE, 0.0, "reading the meshes");
     let raw = capture.read_mesh(&capture.raw_mesh)?;
@@ -143,6 +164,7 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
         progress.check()?;
     }
 
+    lap(&mut seconds.rays);
     progress.update(STAGE, 0.4, "the raw mesh's colours");
     let tol = opts.visibility_mm * 1e-3;
     // Per vertex, its mean colour over the views that see it: L*a*b* for the colour models,
@@ -175,6 +197,7 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let neighbours = region::vertex_neighbours(raw);
     let (prob, models, summary) = region::hair_probability(&prior, &colours, &neighbours, &opts.region);
     progress.check()?;
+    lap(&mut seconds.region);
 
     let matting_opts =
         MattingOptions { epsilon: opts.matting_epsilon, prior_weight: opts.matting_prior, ..MattingOptions::default() };
@@ -195,6 +218,7 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
             opts.beyond.reach_mm * px_per_mm,
             &opts.beyond,
         );
+        lap(&mut seconds.silhouettes);
         let alpha = if opts.matting {
             let band = (opts.band_mm * px_per_mm).max(opts.min_band_px);
             let trimap = Trimap::from_probability(&silhouette.data, silhouette.width, silhouette.height, band);
@@ -206,10 +230,11 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
             GrayImage32 { width: silhouette.width, height: silhouette.height, data }
         };
         alphas.push(alpha);
+        lap(&mut seconds.matting);
         progress.check()?;
     }
     progress.update(STAGE, 1.0, "done");
-    Ok(MaskSet { region: prob, alphas, summary })
+    Ok(MaskSet { region: prob, alphas, summary, seconds })
 }
 
 /// The region's probability where each pixel's ray meets the raw mesh (0 where it meets the head
