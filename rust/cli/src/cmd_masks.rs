@@ -45,6 +45,10 @@ pub struct MasksArgs {
     /// Weight of each pixel's own colour against the hair region's probability.
     #[arg(long, default_value_t = MaskOptions::default().pixel_colour)]
     pub pixel_colour: f32,
+    /// Through a hole of the raw mesh onto the fitted scalp, take the hair region of the raw
+    /// mesh's closest point within this many millimetres; 0 turns it off.
+    #[arg(long, default_value_t = MaskOptions::default().hole_mm)]
+    pub hole_mm: f32,
     /// Averaging passes of the hair probability over the raw mesh.
     #[arg(long, default_value_t = MaskOptions::default().region.smoothing)]
     pub smoothing: usize,
@@ -71,6 +75,7 @@ pub fn run(args: MasksArgs) -> CmdResult {
         matting: !args.no_matting,
         band_mm: args.band_mm,
         pixel_colour: args.pixel_colour,
+        hole_mm: args.hole_mm,
         ..MaskOptions::default()
     };
     opts.region.smoothing = args.smoothing;

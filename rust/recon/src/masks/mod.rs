@@ -27,7 +27,7 @@ pub mod trimap;
 use glam::{Vec2, Vec3};
 use hairrecon_core::capture::Capture;
 use hairrecon_core::image_io::{read_rgb_f32, GrayImage32, RgbImage32};
-use hairrecon_core::{Bvh, FormatError, TriMesh};
+use hairrecon_core::{Bvh, FormatError};
 use rayon::prelude::*;
 use thiserror::Error;
 
@@ -35,7 +35,7 @@ use crate::progress::{Cancelled, Progress};
 use beyond::BeyondOptions;
 use matting::{closed_form_matting, MattingError, MattingOptions};
 use region::{RegionOptions, RegionSummary};
-use render::{Surface, ViewHits};
+use render::{PixelHit, Surface, ViewHits};
 use trimap::Trimap;
 
 /// The parameters of the masks.
@@ -49,6 +49,12 @@ pub struct MaskOptions {
     /// Weight of each pixel's own colour (its hair-against-rest log-likelihood ratio under the
     /// region's colour models) added to the region's log-odds; 0 renders the region alone.
     pub pixel_colour: f32,
+    /// Where a ray passes through a hole of the raw mesh and meets the fitted head's scalp, the
+    /// pixel takes the region's probability at the raw mesh's point closest to the scalp's, when it
+    /// lies within this distance (mm; 0: the head's pixels are never hair). A configuration without
+    /// it replays without it.
+    #[serde(default)]
+    pub hole_mm: f32,
     /// Depth slack (mm) of a vertex's visibility test, beyond one and a half pixels' footprint.
     pub visibility_mm: f32,
     /// Half-width (mm, at the head's distance) of the trimap's unknown band around the silhouette.
@@ -69,6 +75,7 @@ impl Default for MaskOptions {
             region: RegionOptions::default(),
             beyond: BeyondOptions::default(),
             pixel_colour: 0.5,
+            hole_mm: 50.0,
             visibility_mm: 3.0,
             band_mm: 12.0,
             min_band_px: 2.0,
@@ -207,7 +214,8 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let mut alphas = Vec::with_capacity(n_views);
     for (k, view) in capture.views.iter().enumerate() {
         progress.update(STAGE, 0.55 + 0.45 * k as f32 / n_views as f32, &format!("view {}: alpha", view.name));
-        let mut silhouette = silhouette(&hits[k], raw, &prob, &images[k], models.as_ref(), opts.pixel_colour);
+        let surfaces = Surfaces { raw: &raw_bvh, head: &head, scalp: &scalp, hole: opts.hole_mm * 1e-3 };
+        let mut silhouette = silhouette(&hits[k], &surfaces, &prob, &images[k], models.as_ref(), opts.pixel_colour);
         // Pixels per millimetre at the head's distance.
         let px_per_mm = 1e-3 * view.camera.k().col(0).x / view.camera.project(centre).map_or(1.0, |p| p.depth);
         beyond::extend(
@@ -237,11 +245,44 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     Ok(MaskSet { region: prob, alphas, summary, seconds })
 }
 
-/// The region's probability where each pixel's ray meets the raw mesh (0 where it meets the head
-/// or nothing).
+/// A point of the fitted head this close (metres) to its scalp is on the scalp.
+const ON_SCALP: f32 = 0.002;
+
+/// The surfaces a view's rays met.
+struct Surfaces<'a> {
+    raw: &'a Bvh,
+    head: &'a Bvh,
+    scalp: &'a Bvh,
+    /// [`MaskOptions::hole_mm`] in metres.
+    hole: f32,
+}
+
+impl Surfaces<'_> {
+    /// The region's probability where the ray of `h` met the raw mesh, or through a hole of the raw
+    /// mesh the fitted head's scalp: the probability of the raw mesh's closest point within `hole`
+    /// (a hole in the hair over the scalp shows the hair around it). `None` elsewhere: the face,
+    /// ears and neck of the head, where it lies in front of the raw mesh, are not hair (a shaded
+    /// neck the raw mesh missed would otherwise take the hair behind it).
+    fn region(&self, h: &PixelHit, prob: &[f32]) -> Option<f32> {
+        let at = |bvh: &Bvh, triangle: u32, bary: Vec3| bvh.interpolate(prob, triangle, bary);
+        match h.surface {
+            Surface::Raw => Some(at(self.raw, h.triangle, Vec3::new(1.0 - h.u - h.v, h.u, h.v))),
+            Surface::Head if self.hole > 0.0 => {
+                let corners = self.head.mesh().corners(h.triangle as usize);
+                let p = (1.0 - h.u - h.v) * corners[0] + h.u * corners[1] + h.v * corners[2];
+                self.scalp.closest_point(p, ON_SCALP)?;
+                self.raw.closest_point(p, self.hole).map(|c| at(self.raw, c.triangle, c.bary))
+            }
+            _ => None,
+        }
+    }
+}
+
+/// The region's probability where each pixel's ray meets the raw mesh (or the head through one of
+/// its holes; 0 where it meets the head elsewhere or nothing), with the pixel's own colour.
 fn silhouette(
     hits: &ViewHits,
-    raw: &TriMesh,
+    surfaces: &Surfaces,
     prob: &[f32],
     image: &RgbImage32,
     models: Option<&region::ColourModels>,
@@ -251,22 +292,17 @@ fn silhouette(
         .hits
         .par_iter()
         .enumerate()
-        .map(|(i, h)| match h.surface {
-            Surface::Raw => {
-                let t = raw.triangles[h.triangle as usize];
-                let w0 = 1.0 - h.u - h.v;
-                let p = w0 * prob[t[0] as usize] + h.u * prob[t[1] as usize] + h.v * prob[t[2] as usize];
-                match models {
-                    Some(m) if colour_weight > 0.0 => {
-                        let c = &image.data[3 * i..3 * i + 3];
-                        let l = m.log_ratio(colour::srgb_to_lab([c[0], c[1], c[2]]));
-                        let p = p.clamp(1e-4, 1.0 - 1e-4);
-                        1.0 / (1.0 + (-((p / (1.0 - p)).ln() + colour_weight * l)).exp())
-                    }
-                    _ => p,
+        .map(|(i, h)| match surfaces.region(h, prob) {
+            Some(p) => match models {
+                Some(m) if colour_weight > 0.0 => {
+                    let c = &image.data[3 * i..3 * i + 3];
+                    let l = m.log_ratio(colour::srgb_to_lab([c[0], c[1], c[2]]));
+                    let p = p.clamp(1e-4, 1.0 - 1e-4);
+                    1.0 / (1.0 + (-((p / (1.0 - p)).ln() + colour_weight * l)).exp())
                 }
-            }
-            _ => 0.0,
+                _ => p,
+            },
+            None => 0.0,
         })
         .collect();
     GrayImage32 { width: hits.width, height: hits.height, data }
@@ -293,14 +329,72 @@ pub(crate) mod tests {
     use super::*;
 
     #[test]
-    fn options_written_before_the_hair_beyond_the_mesh_replay_without_it() {
+    fn options_written_before_the_hair_beyond_the_mesh_and_the_hole_fill_replay_without_them() {
         let mut old = serde_json::to_value(MaskOptions::default()).unwrap();
         old.as_object_mut().unwrap().remove("beyond");
+        old.as_object_mut().unwrap().remove("hole_mm");
         let back: MaskOptions = serde_json::from_value(old).unwrap();
         assert_eq!(back.beyond.reach_mm, 0.0);
-        assert!(MaskOptions::default().beyond.reach_mm > 0.0);
+        assert_eq!(back.hole_mm, 0.0);
+        assert!(MaskOptions::default().beyond.reach_mm > 0.0 && MaskOptions::default().hole_mm > 0.0);
         let now: MaskOptions = serde_json::from_value(serde_json::to_value(MaskOptions::default()).unwrap()).unwrap();
         assert_eq!(now, MaskOptions::default());
+    }
+
+    /// A square grid of `n`×`n` cells of side `cell` in the plane y = `y`, facing −Y, centred on
+    /// the Z axis; cells for which `skip(i, j)` holds are left out (a hole).
+    fn grid(n: u32, cell: f32, y: f32, skip: impl Fn(u32, u32) -> bool) -> hairrecon_core::TriMesh {
+        let half = n as f32 * cell / 2.0;
+        let vertices = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| Vec3::new(i as f32 * cell - half, y, j as f32 * cell - half)))
+            .collect();
+        let at = |i: u32, j: u32| j * (n + 1) + i;
+        let triangles = (0..n)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .filter(|&(i, j)| !skip(i, j))
+            .flat_map(|(i, j)| [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]])
+            .collect();
+        hairrecon_core::TriMesh::new(vertices, triangles, None, None).unwrap()
+    }
+
+    #[test]
+    fn a_hole_in_the_raw_mesh_takes_the_region_around_it_not_the_head_behind() {
+        use hairrecon_core::Camera;
+        // The raw mesh: a 20 cm square 2 cm in front of the head (a plane), with a 4 cm hole.
+        let raw = Bvh::new(grid(20, 0.01, -0.02, |i, j| (8..12).contains(&i) && (8..12).contains(&j)));
+        let head = Bvh::new(grid(4, 0.1, 0.0, |_, _| false));
+        // The scalp: the head's upper half (z > 0); its lower half is the neck.
+        let scalp = Bvh::new(grid(4, 0.1, 0.0, |_, j| j < 2));
+        let cam = Camera::look_at(Vec3::new(0.0, -1.0, 0.0), Vec3::ZERO, Vec3::Z, 0.5, 64, 64).unwrap();
+        let hits = ViewHits::cast(&cam, &raw, Some(&head));
+        // A pixel a little above the centre (z about +1 cm): through the hole onto the scalp.
+        let centre = 30 * 64 + 32;
+        assert_eq!(hits.hits[centre].surface, Surface::Head, "the pixel looks through the hole");
+        let image = RgbImage32 { width: 64, height: 64, data: vec![0.5; 64 * 64 * 3] };
+        let n = raw.mesh().vertices.len();
+        let render = |prob: f32, hole_mm: f32| {
+            let surfaces = Surfaces { raw: &raw, head: &head, scalp: &scalp, hole: hole_mm * 1e-3 };
+            silhouette(&hits, &surfaces, &vec![prob; n], &image, None, 0.0).data
+        };
+        // Hair around the hole: the hole is hair; skin around it: skin; without the fill, never hair.
+        assert!((render(0.9, 50.0)[centre] - 0.9).abs() < 1e-5);
+        assert!(render(0.1, 50.0)[centre] < 0.1 + 1e-5);
+        assert_eq!(render(0.9, 0.0)[centre], 0.0);
+        // The head's point under the hole is 2 cm behind and 1 cm across from the mesh: not within 1 cm.
+        assert_eq!(render(0.9, 10.0)[centre], 0.0);
+        // A pixel that meets the raw mesh keeps its probability; one that meets nothing stays 0.
+        let on_mesh = 32 * 64 + 24;
+        assert_eq!(hits.hits[on_mesh].surface, Surface::Raw);
+        assert!((render(0.9, 50.0)[on_mesh] - 0.9).abs() < 1e-5);
+        assert_eq!(render(0.9, 50.0)[0], 0.0);
+        // Through a hole below the scalp (z < 0: the neck) the head is not hair.
+        let raw_low = Bvh::new(grid(20, 0.01, -0.02, |i, j| (8..12).contains(&i) && (5..8).contains(&j)));
+        let hits_low = ViewHits::cast(&cam, &raw_low, Some(&head));
+        let below = 36 * 64 + 32;
+        assert_eq!(hits_low.hits[below].surface, Surface::Head, "the pixel looks through the lower hole");
+        let surfaces = Surfaces { raw: &raw_low, head: &head, scalp: &scalp, hole: 0.05 };
+        let n_low = raw_low.mesh().vertices.len();
+        assert_eq!(silhouette(&hits_low, &surfaces, &vec![0.9; n_low], &image, None, 0.0).data[below], 0.0);
     }
 
     /// A small linear congruential generator (Knuth's MMIX constants): reproducible test data
