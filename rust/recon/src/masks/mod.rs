@@ -211,10 +211,10 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     let centre = raw_bvh.mesh().bbox();
     let centre = (centre.0 + centre.1) * 0.5;
     let behind = beyond::Behind { raw, colours: &linear };
+    let surfaces = Surfaces { raw: &raw_bvh, head: &head, scalp: &scalp, hole: opts.hole_mm * 1e-3 };
     let mut alphas = Vec::with_capacity(n_views);
     for (k, view) in capture.views.iter().enumerate() {
         progress.update(STAGE, 0.55 + 0.45 * k as f32 / n_views as f32, &format!("view {}: alpha", view.name));
-        let surfaces = Surfaces { raw: &raw_bvh, head: &head, scalp: &scalp, hole: opts.hole_mm * 1e-3 };
         let mut silhouette = silhouette(&hits[k], &surfaces, &prob, &images[k], models.as_ref(), opts.pixel_colour);
         // Pixels per millimetre at the head's distance.
         let px_per_mm = 1e-3 * view.camera.k().col(0).x / view.camera.project(centre).map_or(1.0, |p| p.depth);
@@ -264,14 +264,13 @@ impl Surfaces<'_> {
     /// ears and neck of the head, where it lies in front of the raw mesh, are not hair (a shaded
     /// neck the raw mesh missed would otherwise take the hair behind it).
     fn region(&self, h: &PixelHit, prob: &[f32]) -> Option<f32> {
-        let at = |bvh: &Bvh, triangle: u32, bary: Vec3| bvh.interpolate(prob, triangle, bary);
+        let bary = Vec3::new(1.0 - h.u - h.v, h.u, h.v);
         match h.surface {
-            Surface::Raw => Some(at(self.raw, h.triangle, Vec3::new(1.0 - h.u - h.v, h.u, h.v))),
+            Surface::Raw => Some(self.raw.interpolate(prob, h.triangle, bary)),
             Surface::Head if self.hole > 0.0 => {
-                let corners = self.head.mesh().corners(h.triangle as usize);
-                let p = (1.0 - h.u - h.v) * corners[0] + h.u * corners[1] + h.v * corners[2];
+                let p = self.head.interpolate(&self.head.mesh().vertices, h.triangle, bary);
                 self.scalp.closest_point(p, ON_SCALP)?;
-                self.raw.closest_point(p, self.hole).map(|c| at(self.raw, c.triangle, c.bary))
+                self.raw.closest_point(p, self.hole).map(|c| self.raw.interpolate(prob, c.triangle, c.bary))
             }
             _ => None,
         }
