@@ -21,6 +21,15 @@
 //! block mean would not do there: a neck in shadow is darker than the skin around it, and brown
 //! hair over skin blends along nearly the line from lit to shaded skin. A pixel whose ray meets
 //! the fitted head (a hole in the raw mesh) is left as it is.
+//!
+//! Photo fusion also builds the sparse ends of long hair, where they hang free below the head, into
+//! a sheet of their own, and that sheet's colour over the views is itself the blend (pale with the
+//! backdrop behind it), so the region reads it as no hair and its own colour explains the pixel
+//! with no hair at all. A surface far from the fitted head, on which the views disagree (each sees
+//! other strands and another background through it), and whose own colour is a blend of the
+//! hair's and the clear background's, is taken for such a sheet ([`BeyondOptions::loose_sheets`]):
+//! its pixels blend with the background behind it instead, however far they lie from the
+//! silhouette.
 
 use glam::Vec3;
 use hairrecon_core::image_io::RgbImage32;
@@ -48,11 +57,16 @@ pub struct BeyondOptions {
     /// Also where the ray meets the raw mesh outside the hair region (hair hanging in front of
     /// the face, the neck or the shoulders), against the colour of that surface.
     pub on_mesh: bool,
+    /// A surface of the raw mesh far from the fitted head, whose colour varies over the views and is
+    /// on average a blend of the hair's and the clear background's, is a sheet of sparse hair: its
+    /// pixels blend with the background (module doc). A configuration without it replays without it.
+    #[serde(default)]
+    pub loose_sheets: bool,
 }
 
 impl Default for BeyondOptions {
     fn default() -> Self {
-        Self { reach_mm: 30.0, min_contrast: 0.15, max_residual: 0.25, block_px: 16, on_mesh: true }
+        Self { reach_mm: 30.0, min_contrast: 0.15, max_residual: 0.25, block_px: 16, on_mesh: true, loose_sheets: true }
     }
 }
 
@@ -69,6 +83,11 @@ impl BeyondOptions {
 pub struct Behind<'a> {
     pub raw: &'a TriMesh,
     pub colours: &'a [Option<Vec3>],
+    /// Per vertex: how much its colour varies over the views that see it (the RMS distance from
+    /// its mean, linear RGB).
+    pub spread: &'a [f32],
+    /// Per vertex: it lies far from the fitted head (no face, neck or scalp near it).
+    pub far: &'a [bool],
 }
 
 impl Behind<'_> {
@@ -82,7 +101,48 @@ impl Behind<'_> {
         let c = |k: usize| self.colours.get(t[k] as usize).copied().flatten();
         Some((1.0 - hit.u - hit.v) * c(0)? + hit.u * c(1)? + hit.v * c(2)?)
     }
+
+    /// Whether the ray of `hit` meets the raw mesh where it may be a sheet of sparse hair: all
+    /// three corners far from the head, the views disagreeing on their colours.
+    fn loose(&self, hit: &super::render::PixelHit) -> bool {
+        let loose = |v: u32| {
+            let v = v as usize;
+            self.far.get(v).copied().unwrap_or(false) && self.spread.get(v).is_some_and(|&s| s >= SHEET_SPREAD)
+        };
+        hit.surface == Surface::Raw
+            && self.raw.triangles.get(hit.triangle as usize).is_some_and(|t| t.iter().all(|&v| loose(v)))
+    }
 }
+
+/// `c` read as a blend of `bg` and `fore`: the share of `fore`, when the two differ by at least
+/// [`BeyondOptions::min_contrast`] and `c` lies within `max_residual` of their distance from the
+/// segment between.
+fn blend_share(c: Vec3, bg: Vec3, fore: Vec3, max_residual: f32, opts: &BeyondOptions) -> Option<f32> {
+    let d = fore - bg;
+    let len = d.length();
+    if len < opts.min_contrast {
+        return None;
+    }
+    let alpha = ((c - bg).dot(d) / (len * len)).clamp(0.0, 1.0);
+    ((c - (bg + alpha * d)).length() <= max_residual * len).then_some(alpha)
+}
+
+/// The least share of hair in a loose surface's own colour for it to be taken for a sheet of sparse
+/// hair (below, a pale surface is as likely a backdrop's own).
+const MIN_SHEET_SHARE: f32 = 0.1;
+
+/// A loose surface's own colour lies this close to the blend's segment, as a share of its length,
+/// to be taken for a sheet of sparse hair: closer than a pixel's blend needs to, since skin and
+/// clothes lie near the segment from dark hair to a pale backdrop (lit skin against brown hair and
+/// white: 0.14), and what a sheet shows is a blend by construction (0.02 on the straight capture).
+const SHEET_RESIDUAL: f32 = 0.08;
+
+/// The least spread of a surface's colour over the views (RMS, linear RGB) for it to be taken
+/// for a sheet of sparse hair. Opaque surfaces under the capture's light vary less: the clothed
+/// torso of the red-haired clutter capture, whose colours lie on the segment from the hair to the
+/// room, mostly under 0.01 (a threshold of 0.01 put 1.3 % of its masks off the hair, 0.02 none);
+/// the sparse ends of the straight capture's hair are at 0.08 in the median.
+const SHEET_SPREAD: f32 = 0.02;
 
 /// Linear RGB of pixel `i` of `image`.
 fn pixel(image: &RgbImage32, i: usize) -> Vec3 {
@@ -164,35 +224,42 @@ pub fn extend(
     let back = block_means(image, &backdrop, block);
     let mut raised = 0;
     for (i, s) in silhouette.iter_mut().enumerate() {
-        if *s >= 0.5 || from_hair[i] > reach_px {
+        let hit = &hits.hits[i];
+        let within = from_hair[i] <= reach_px;
+        // A sheet of sparse hair is hair however far it hangs from the silhouette.
+        let may_be_sheet = opts.on_mesh && opts.loose_sheets && behind.loose(hit);
+        if *s >= 0.5 || !(within || may_be_sheet) {
             continue;
         }
         let (x, y) = (i % w as usize, i / w as usize);
         let b = (y / block) * bw + x / block;
+        let backdrop_here = back.as_ref().map(|(back, _)| back[b]);
         let bg = if missed(i) {
-            match &back {
-                Some((back, _)) => back[b],
+            match backdrop_here {
+                Some(c) => c,
                 None => continue,
             }
         } else if opts.on_mesh {
-            match behind.at(&hits.hits[i]) {
-                Some(c) => c,
-                None => continue,
+            match (behind.at(hit), backdrop_here) {
+                // A sheet of sparse hair: its own colour is a blend of the hair and the backdrop.
+                (Some(s), Some(bd))
+                    if may_be_sheet
+                        && blend_share(s, bd, fore[b], SHEET_RESIDUAL, opts).is_some_and(|a| a >= MIN_SHEET_SHARE) =>
+                {
+                    bd
+                }
+                (Some(s), _) if within => s,
+                _ => continue,
             }
         } else {
             continue;
         };
-        let d = fore[b] - bg;
-        let len = d.length();
-        if len < opts.min_contrast {
-            continue;
-        }
         let c = pixel(image, i);
-        let alpha = ((c - bg).dot(d) / (len * len)).clamp(0.0, 1.0);
-        let residual = (c - (bg + alpha * d)).length();
-        if residual <= opts.max_residual * len && alpha > *s + 1e-3 {
-            *s = alpha;
-            raised += 1;
+        if let Some(alpha) = blend_share(c, bg, fore[b], opts.max_residual, opts) {
+            if alpha > *s + 1e-3 {
+                *s = alpha;
+                raised += 1;
+            }
         }
     }
     raised
@@ -208,12 +275,19 @@ mod tests {
     const SKIN: Vec3 = Vec3::new(0.6, 0.4, 0.3);
     const SHADE: Vec3 = Vec3::new(0.2, 0.13, 0.1);
 
-    /// The raw mesh behind the hair: triangle 0 skin, triangle 1 skin in shadow (their vertices'
-    /// colours over the views).
-    fn mesh() -> (TriMesh, Vec<Option<Vec3>>) {
-        let m =
-            TriMesh { vertices: vec![Vec3::ZERO; 6], triangles: vec![[0, 1, 2], [3, 4, 5]], normals: None, uvs: None };
-        (m, [SKIN, SKIN, SKIN, SHADE, SHADE, SHADE].map(Some).to_vec())
+    /// A sheet of sparse hair as fusion builds it: its colour over the views is half hair, half
+    /// the white backdrop seen through it.
+    const SHEET: Vec3 = Vec3::new(0.475, 0.465, 0.46);
+
+    /// The raw mesh behind the hair: triangle 0 skin, triangle 1 skin in shadow, triangle 2 a sheet
+    /// of sparse hair, triangle 3 grey clothes of the sheet's colour (their vertices' colours over
+    /// the views, and how much they vary: the sheet's much, the opaque surfaces' little).
+    fn mesh() -> (TriMesh, Vec<Option<Vec3>>, Vec<f32>) {
+        let triangles = vec![[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]];
+        let m = TriMesh { vertices: vec![Vec3::ZERO; 12], triangles, normals: None, uvs: None };
+        let colours = [SKIN, SHADE, SHEET, SHEET].into_iter().flat_map(|c| [Some(c); 3]).collect();
+        let spread = [0.005, 0.005, 0.08, 0.005].into_iter().flat_map(|s| [s; 3]).collect();
+        (m, colours, spread)
     }
 
     /// A 40 × 20 view: the raw mesh met in the hair region on the left half (silhouette 1), dark
@@ -253,9 +327,21 @@ mod tests {
         reach: f32,
         o: &BeyondOptions,
     ) -> (usize, Vec<f32>, Vec<f32>) {
-        let (m, colours) = mesh();
+        run_loose(behind, reach, o, false)
+    }
+
+    /// As [`run`], with every vertex of the raw mesh far from the head (`loose`) or none.
+    fn run_loose(
+        behind: impl Fn(usize, usize) -> (Vec3, Option<u32>),
+        reach: f32,
+        o: &BeyondOptions,
+        loose: bool,
+    ) -> (usize, Vec<f32>, Vec<f32>) {
+        let (m, colours, spread) = mesh();
+        let far = vec![loose; m.vertices.len()];
         let (mut sil, hits, image, truth) = view(behind);
-        let raised = extend(&mut sil, &hits, &image, &Behind { raw: &m, colours: &colours }, reach, o);
+        let behind = Behind { raw: &m, colours: &colours, spread: &spread, far: &far };
+        let raised = extend(&mut sil, &hits, &image, &behind, reach, o);
         (raised, sil, truth)
     }
 
@@ -290,6 +376,35 @@ mod tests {
         let (raised, sil, _) = run(neck, 8.0, &BeyondOptions { on_mesh: false, ..opts() });
         assert_eq!(raised, 40);
         assert!(sil[10 * 40..].iter().enumerate().all(|(i, &s)| i % 40 < 20 || s == 0.0));
+    }
+
+    #[test]
+    fn a_sheet_of_sparse_hair_far_from_the_head_blends_with_the_backdrop_behind_it() {
+        // The top 10 rows show the white backdrop; the bottom 10 the sheet, whose own colour is a
+        // blend, and the backdrop through it. Far from the head, the sheet's pixels blend with the
+        // backdrop; near it (or without the option) with the sheet's own colour, which reads the
+        // sheet's half share of hair as none.
+        let sheet = |_: usize, y: usize| (WHITE, (y >= 10).then_some(2));
+        let (raised, sil, truth) = run_loose(sheet, 8.0, &opts(), true);
+        assert_eq!(raised, 80);
+        assert_close(&sil, &truth);
+        for (loose, o) in [(false, opts()), (true, BeyondOptions { loose_sheets: false, ..opts() })] {
+            let (raised, sil, _) = run_loose(sheet, 8.0, &o, loose);
+            assert_eq!(raised, 40 + 20, "the backdrop's half, and on the sheet only the two darkest columns");
+            assert!(sil[10 * 40 + 20] < 0.7 && sil[10 * 40 + 22] == 0.0);
+        }
+        // Lit skin far from the head (a hand, a bare shoulder) is no sheet: its colour lies near the
+        // segment from brown hair to white, but not near enough.
+        let hand = |_: usize, y: usize| if y < 10 { (WHITE, None) } else { (SKIN, Some(0)) };
+        let (raised, sil, truth) = run_loose(hand, 8.0, &opts(), true);
+        assert_eq!(raised, 80);
+        assert_close(&sil, &truth);
+        // Grey clothes of the sheet's very colour, on which the views agree, are no sheet either:
+        // hair over them blends with their own colour.
+        let clothes = |_: usize, y: usize| if y < 10 { (WHITE, None) } else { (SHEET, Some(3)) };
+        let (raised, sil, truth) = run_loose(clothes, 8.0, &opts(), true);
+        assert_eq!(raised, 80, "as a sheet, the clothes' own pixels would take half a share of hair");
+        assert_close(&sil, &truth);
     }
 
     #[test]

@@ -175,28 +175,36 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     progress.update(STAGE, 0.4, "the raw mesh's colours");
     let tol = opts.visibility_mm * 1e-3;
     // Per vertex, its mean colour over the views that see it: L*a*b* for the colour models,
-    // linear RGB for the blends of hair and what lies behind it.
-    let (colours, linear): (Vec<Option<Vec3>>, Vec<Option<Vec3>>) = raw
+    // linear RGB for the blends of hair and what lies behind it; and how much the views disagree
+    // on it (the RMS distance from that mean), which tells a sheet of sparse hair (`beyond`).
+    let per_vertex: Vec<(Option<Vec3>, Option<Vec3>, f32)> = raw
         .vertices
         .par_iter()
         .zip(normals.par_iter())
         .map(|(&p, &n)| {
-            let (mut lab, mut rgb, mut weight) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
+            let (mut lab, mut rgb, mut rgb2, mut weight) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0.0f32);
             for (k, view) in capture.views.iter().enumerate() {
                 if let Some((pixel, facing)) = render::seen(&view.camera, &hits[k], p, n, tol) {
                     let c = colour::srgb_to_linear(bilinear(&images[k], pixel));
                     lab += facing * colour::linear_to_lab(c);
                     rgb += facing * c;
+                    rgb2 += facing * c * c;
                     weight += facing;
                 }
             }
             if weight > 0.0 {
-                (Some(lab / weight), Some(rgb / weight))
+                let mean = rgb / weight;
+                let spread = (rgb2 / weight - mean * mean).max(Vec3::ZERO).element_sum().sqrt();
+                (Some(lab / weight), Some(mean), spread)
             } else {
-                (None, None)
+                (None, None, 0.0)
             }
         })
-        .unzip();
+        .collect();
+    let colours: Vec<Option<Vec3>> = per_vertex.iter().map(|v| v.0).collect();
+    let linear: Vec<Option<Vec3>> = per_vertex.iter().map(|v| v.1).collect();
+    let spread: Vec<f32> = per_vertex.iter().map(|v| v.2).collect();
+    drop(per_vertex);
     progress.check()?;
 
     progress.update(STAGE, 0.5, "the hair region");
@@ -210,7 +218,8 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
         MattingOptions { epsilon: opts.matting_epsilon, prior_weight: opts.matting_prior, ..MattingOptions::default() };
     let centre = raw_bvh.mesh().bbox();
     let centre = (centre.0 + centre.1) * 0.5;
-    let behind = beyond::Behind { raw, colours: &linear };
+    let far = if opts.beyond.loose_sheets { region::far_from_head(raw, &head, &opts.region) } else { Vec::new() };
+    let behind = beyond::Behind { raw, colours: &linear, spread: &spread, far: &far };
     let surfaces = Surfaces { raw: &raw_bvh, head: &head, scalp: &scalp, hole: opts.hole_mm * 1e-3 };
     let mut alphas = Vec::with_capacity(n_views);
     for (k, view) in capture.views.iter().enumerate() {
@@ -332,9 +341,14 @@ pub(crate) mod tests {
         let mut old = serde_json::to_value(MaskOptions::default()).unwrap();
         old.as_object_mut().unwrap().remove("beyond");
         old.as_object_mut().unwrap().remove("hole_mm");
-        let back: MaskOptions = serde_json::from_value(old).unwrap();
+        let back: MaskOptions = serde_json::from_value(old.clone()).unwrap();
         assert_eq!(back.beyond.reach_mm, 0.0);
         assert_eq!(back.hole_mm, 0.0);
+        // A beyond written before the loose sheets replays without them.
+        old["beyond"] = serde_json::json!({"reach_mm": 30.0});
+        let back: MaskOptions = serde_json::from_value(old).unwrap();
+        assert_eq!(back.beyond.reach_mm, 30.0);
+        assert!(!back.beyond.loose_sheets && BeyondOptions::default().loose_sheets);
         assert!(MaskOptions::default().beyond.reach_mm > 0.0 && MaskOptions::default().hole_mm > 0.0);
         let now: MaskOptions = serde_json::from_value(serde_json::to_value(MaskOptions::default()).unwrap()).unwrap();
         assert_eq!(now, MaskOptions::default());

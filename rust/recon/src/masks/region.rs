@@ -86,6 +86,13 @@ pub fn geometry_prior(raw: &TriMesh, head: &Bvh, scalp: &Bvh, opts: &RegionOptio
         .collect()
 }
 
+/// Per vertex of `raw`: it lies farther than [`RegionOptions::far_mm`] from the fitted head
+/// `head` (nothing of the face, neck or scalp near it).
+pub fn far_from_head(raw: &TriMesh, head: &Bvh, opts: &RegionOptions) -> Vec<bool> {
+    let far = opts.far_mm * 1e-3;
+    raw.vertices.par_iter().map(|&p| head.signed_distance(p, far).is_none()).collect()
+}
+
 /// The mesh's vertex neighbours (each edge once per direction), as CSR offsets and indices.
 pub fn vertex_neighbours(mesh: &TriMesh) -> (Vec<u32>, Vec<u32>) {
     let n = mesh.vertices.len();
