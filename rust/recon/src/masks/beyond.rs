@@ -224,11 +224,14 @@ pub fn extend(
     let back = block_means(image, &backdrop, block);
     let mut raised = 0;
     for (i, s) in silhouette.iter_mut().enumerate() {
+        if *s >= 0.5 {
+            continue;
+        }
         let hit = &hits.hits[i];
         let within = from_hair[i] <= reach_px;
         // A sheet of sparse hair is hair however far it hangs from the silhouette.
         let may_be_sheet = opts.on_mesh && opts.loose_sheets && behind.loose(hit);
-        if *s >= 0.5 || !(within || may_be_sheet) {
+        if !(within || may_be_sheet) {
             continue;
         }
         let (x, y) = (i % w as usize, i / w as usize);

@@ -208,7 +208,7 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
     progress.check()?;
 
     progress.update(STAGE, 0.5, "the hair region");
-    let prior = region::geometry_prior(raw, &head, &scalp, &opts.region);
+    let (prior, far) = region::geometry_prior(raw, &head, &scalp, &opts.region);
     let neighbours = region::vertex_neighbours(raw);
     let (prob, models, summary) = region::hair_probability(&prior, &colours, &neighbours, &opts.region);
     progress.check()?;
@@ -218,7 +218,6 @@ pub fn make_masks(capture: &Capture, opts: &MaskOptions, progress: &dyn Progress
         MattingOptions { epsilon: opts.matting_epsilon, prior_weight: opts.matting_prior, ..MattingOptions::default() };
     let centre = raw_bvh.mesh().bbox();
     let centre = (centre.0 + centre.1) * 0.5;
-    let far = if opts.beyond.loose_sheets { region::far_from_head(raw, &head, &opts.region) } else { Vec::new() };
     let behind = beyond::Behind { raw, colours: &linear, spread: &spread, far: &far };
     let surfaces = Surfaces { raw: &raw_bvh, head: &head, scalp: &scalp, hole: opts.hole_mm * 1e-3 };
     let mut alphas = Vec::with_capacity(n_views);

@@ -60,37 +60,32 @@ pub mod prior {
     pub const FAR: f32 = 0.5;
 }
 
-/// The geometry prior of every vertex of `raw` (see the module doc). `head` and `scalp` are the
-/// fitted head and its scalp, in the raw mesh's frame, in metres.
-pub fn geometry_prior(raw: &TriMesh, head: &Bvh, scalp: &Bvh, opts: &RegionOptions) -> Vec<f32> {
+/// The geometry prior of every vertex of `raw` (see the module doc), and whether it lies farther
+/// than [`RegionOptions::far_mm`] from the head (nothing of the face, neck or scalp near it).
+/// `head` and `scalp` are the fitted head and its scalp, in the raw mesh's frame, in metres.
+pub fn geometry_prior(raw: &TriMesh, head: &Bvh, scalp: &Bvh, opts: &RegionOptions) -> (Vec<f32>, Vec<bool>) {
     let far = opts.far_mm * 1e-3;
     raw.vertices
         .par_iter()
         .map(|&p| {
             let Some(d) = head.signed_distance(p, far) else {
-                return prior::FAR;
+                return (prior::FAR, true);
             };
             if d < -opts.hair_mm * 1e-3 {
-                return prior::FAR;
+                return (prior::FAR, false);
             }
             // The nearest part of the head is scalp when the scalp is (about) as near as the head.
             let head_dist = d.abs();
             let on_scalp = scalp.closest_point(p, head_dist + 1.5e-3).is_some();
-            match (on_scalp, d * 1e3) {
+            let prior = match (on_scalp, d * 1e3) {
                 (true, mm) if mm >= opts.hair_mm => prior::OFF_SCALP,
                 (true, _) => prior::ON_SCALP,
                 (false, mm) if mm <= opts.skin_mm => prior::ON_SKIN,
                 (false, _) => prior::OFF_SKIN,
-            }
+            };
+            (prior, false)
         })
-        .collect()
-}
-
-/// Per vertex of `raw`: it lies farther than [`RegionOptions::far_mm`] from the fitted head
-/// `head` (nothing of the face, neck or scalp near it).
-pub fn far_from_head(raw: &TriMesh, head: &Bvh, opts: &RegionOptions) -> Vec<bool> {
-    let far = opts.far_mm * 1e-3;
-    raw.vertices.par_iter().map(|&p| head.signed_distance(p, far).is_none()).collect()
+        .unzip()
 }
 
 /// The mesh's vertex neighbours (each edge once per direction), as CSR offsets and indices.
