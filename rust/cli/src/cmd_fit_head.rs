@@ -71,6 +71,9 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
         ..defaults
     };
     let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras)?;
+    if let Some(w) = fitted.fit.close_call() {
+        eprintln!("warning: {w}");
+    }
     let out =
         fitted.report(template_path.as_deref(), scalp_path.as_deref(), !args.no_cameras, t0.elapsed().as_secs_f64());
     let mut out = out;

@@ -174,6 +174,7 @@ pub fn fit_json(fit: &FitResult) -> serde_json::Value {
         "exposed_fraction": fit.score.outside,
         "cost": fit.score.cost,
         "runner_up_cost": fit.runner_up_cost,
+        "warning": fit.close_call(),
         "shape": fit.shape.map(|r| serde_json::json!({
             "skin_rms_mm": r.skin_rms * 1e3,
             "skin_matched_fraction": r.skin_matched,

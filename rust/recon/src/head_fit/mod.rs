@@ -121,10 +121,32 @@ pub struct FitResult {
     /// The pose's score on all template points.
     pub score: PoseScore,
     /// The best cost of a refined pose whose rotation differs from the winner's by more than 30°
-    /// (how clearly the winner won; `None` when every refined pose agreed).
+    /// (how clearly the winner won, [`FitResult::close_call`]; `None` when every refined pose
+    /// agreed).
     pub runner_up_cost: Option<f64>,
     /// The shape's fit after the similarity, when one ran ([`FitOptions::deform`]).
     pub shape: Option<nonrigid::DeformReport>,
+}
+
+/// How close a runner-up's cost may come to the winner's before [`FitResult::close_call`] warns.
+/// On the synthetic captures measured, the true pose won by 0.06 to 0.25.
+pub const CLOSE_CALL: f64 = 0.03;
+
+impl FitResult {
+    /// A warning when a pose turned more than 30° from the fit's costs within [`CLOSE_CALL`] of it:
+    /// the raw mesh then tells the two apart barely, and the fit may have taken the wrong one (the
+    /// back of the head for the face, most often).
+    pub fn close_call(&self) -> Option<String> {
+        let r = self.runner_up_cost?;
+        (r - self.score.cost < CLOSE_CALL).then(|| {
+            format!(
+                "the head fit barely won: a pose turned more than 30° from it costs {r:.3} against its {:.3}; \
+                 check that the face of the fitted head (fitted_head.ply) lies on the raw mesh's face (open \
+                 both in Blender), or give the head and scalp by hand",
+                self.score.cost
+            )
+        })
+    }
 }
 
 /// Why no similarity was found.
@@ -213,12 +235,12 @@ pub fn fit_similarity(
         centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
     let framing = cameras.and_then(|c| coarse::Framing::new(c, &norm));
     let ctx = Search { template, bvh: &bvh, cloud: &cloud, opts, tau: opts.inlier_mm * 1e-3, framing };
-    let mut best = ctx.run(&starts);
+    let mut finalists = ctx.run(&starts);
     // Unless nearly all the skin is on the mesh already (a clean head), search again at a ladder
     // of smaller scales about the places where the surface is densest at a head's size: raw
     // meshes with much more than the head (shoulders, a backdrop) make the first priors wrong,
     // and hair over much of the skin makes a wrong pose's score close to the right one's.
-    if best.0.score.on_surface < opts.clean_fraction {
+    if finalists[0].score.on_surface < opts.clean_fraction {
         let samples = template::sample_surface(bvh.mesh(), |_| true, 4000, 0x5eed_b10b);
         let mut starts = Vec::new();
         for &f in &opts.fallback_scales {
@@ -232,19 +254,38 @@ pub fn fit_similarity(
                 starts.extend(rotations.iter().map(|&r| pose(r, c, f)));
             }
         }
-        let other = ctx.run(&starts);
-        if other.0.score.cost < best.0.score.cost {
-            best = other;
+        finalists.extend(ctx.run(&starts));
+    }
+    // The finalists distinct in rotation, cheapest first. Under hair and clothes a pose's scale
+    // is the last thing ICP gets right (a true pose held 15 % too large by a collar costs more
+    // than a wrong one at its own best scale), so each that passes and costs at most
+    // [`PROBE_WITHIN`] more than the cheapest is refined in scale and on the face before they are
+    // compared; only a pose that passes is, and only by probes that pass: a probe must not turn a
+    // rejected fit, a sphere's say, into an accepted one.
+    finalists.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
+    let mut distinct: Vec<Candidate> = Vec::new();
+    for c in finalists {
+        if distinct.iter().all(|d| d.t.rotation_angle_to(&c.t) > PICK_APART_DEGREES) {
+            distinct.push(c);
         }
     }
-    let (best, runner_up) = best;
-    // Only a pose that passes is refined in scale (and only by probes that pass): a probe must not
-    // turn a rejected fit, a sphere's say, into an accepted one.
-    let best = if acceptable(&best.score, opts) && best.score.on_surface < opts.clean_fraction {
-        ctx.refine_on_face(ctx.probe_scales(best, opts), opts)
-    } else {
-        best
-    };
+    let cheapest = distinct[0].score.cost;
+    let mut done: Vec<Candidate> = distinct
+        .into_iter()
+        .map(|c| {
+            if acceptable(&c.score, opts)
+                && c.score.on_surface < opts.clean_fraction
+                && c.score.cost <= cheapest + PROBE_WITHIN
+            {
+                ctx.refine_on_face(ctx.probe_scales(c, opts), opts)
+            } else {
+                c
+            }
+        })
+        .collect();
+    done.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
+    let best = done[0];
+    let runner_up = done[1..].iter().find(|c| c.t.rotation_angle_to(&best.t) > PICK_APART_DEGREES).copied();
     if let Some(f) = ctx.framing_of(&best.t) {
         if !(opts.framing.0..=opts.framing.1).contains(&f) {
             return Err(FitError::Framing {
@@ -312,6 +353,16 @@ const FACE_KEEP: f64 = 0.7;
 
 /// How much more than the best pose's cost the face's own fit may cost and still replace it.
 const FACE_SLACK: f64 = 0.01;
+
+/// How far apart in rotation the poses [`Search::run`] refines are: nearer ones converge to the
+/// same pose, and a few turned by a similar amount (the head's back taken for its face, a little
+/// off each way) would crowd out a different pose.
+const PICK_APART_DEGREES: f64 = 30.0;
+
+/// How much more than the cheapest finalist a finalist of another rotation may cost and still be
+/// refined in scale: on a clothed capture's mesh the scale probes took the true pose from 0.547
+/// to 0.462, past a wrong one at 0.533.
+const PROBE_WITHIN: f64 = 0.1;
 
 /// The scale factors [`Search::probe_scales`] tries about the best pose.
 const SCALE_PROBES: [f64; 7] = [0.75, 0.8, 0.85, 0.9, 0.95, 1.05, 1.1];
@@ -473,9 +524,17 @@ impl Search<'_> {
         }
     }
 
+    /// The pose `t` turned half a turn about the template's up axis (+Z) through its centre.
+    fn turned_about_up(&self, t: &Similarity) -> Similarity {
+        let c = self.template.stats.centre;
+        let rotation = t.rotation * DMat3::from_rotation_z(std::f64::consts::PI);
+        Similarity { scale: t.scale, rotation, translation: t.apply(c) - t.scale * (rotation * c) }
+    }
+
     /// Brief ICP from every start, then full ICP from the best few; the best and the best whose
-    /// rotation differs from it by more than 30°.
-    fn run(&self, starts: &[Similarity]) -> (Candidate, Option<Candidate>) {
+    /// rotation differs from it by more than [`PICK_APART_DEGREES`], each refined on all points,
+    /// cheapest first.
+    fn run(&self, starts: &[Similarity]) -> Vec<Candidate> {
         let opts = self.opts;
         // Every start briefly on half the points; the most promising quarter on further.
         let all: Vec<(usize, Similarity)> = starts.iter().copied().enumerate().collect();
@@ -489,9 +548,15 @@ impl Search<'_> {
             if picked.len() >= opts.refine_best.max(1) {
                 break;
             }
-            if picked.iter().all(|p| p.t.rotation_angle_to(&c.t) > 10.0 || (p.t.scale / c.t.scale).ln().abs() > 0.1) {
+            if picked.iter().all(|p| p.t.rotation_angle_to(&c.t) > PICK_APART_DEGREES) {
                 picked.push(*c);
             }
+        }
+        // Under hair a head's outline is nearly the same from the front and from the back, and
+        // the face is the one patch of skin that tells them apart: the best start's twin, turned
+        // half a turn about the template's up axis, is refined too.
+        if let Some(b) = picked.first() {
+            picked.push(Candidate { t: self.turned_about_up(&b.t), score: b.score });
         }
         // The picked few on the mesh itself with more points, then the best of them on all points.
         let n = (4 * opts.coarse_points).clamp(3, self.template.points.len());
@@ -518,18 +583,30 @@ impl Search<'_> {
             })
             .collect();
         refined.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
-        let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > 30.0).copied();
-        let o = trimmed_icp(
-            &self.template.points,
-            Some(&self.template.normals),
-            self.bvh,
-            refined[0].t,
-            self.cap(&refined[0].t),
-            &IcpOptions { tolerance: 1e-7, parallel: true, ..plane },
-        );
-        let full = Candidate { t: o.transform, score: self.score(&o.transform, usize::MAX, true) };
-        let best = if full.score.cost <= refined[0].score.cost { full } else { refined[0] };
-        (best, runner_up)
+        // The best, and the best of another rotation (the briefer refinement may leave the true
+        // pose short of its minimum, a few degrees off, and behind a wrong one), each on all points.
+        let runner_up = refined[1..].iter().find(|c| c.t.rotation_angle_to(&refined[0].t) > PICK_APART_DEGREES);
+        let mut finals: Vec<Candidate> = std::iter::once(&refined[0])
+            .chain(runner_up)
+            .map(|c| {
+                let o = trimmed_icp(
+                    &self.template.points,
+                    Some(&self.template.normals),
+                    self.bvh,
+                    c.t,
+                    self.cap(&c.t),
+                    &IcpOptions { tolerance: 1e-7, parallel: true, ..plane },
+                );
+                let full = Candidate { t: o.transform, score: self.score(&o.transform, usize::MAX, true) };
+                if full.score.cost <= c.score.cost {
+                    full
+                } else {
+                    *c
+                }
+            })
+            .collect();
+        finals.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
+        finals
     }
 }
 
@@ -537,6 +614,68 @@ impl Search<'_> {
 mod tests {
     use super::*;
     use crate::head_fit::capture_fit::Template;
+
+    /// The head under hair 2 cm thick over the top, the sides and the back, down to the nape (the
+    /// face and the throat bare): the skin the rest of the fit would hold on to is under it.
+    fn under_hair(head: &TriMesh) -> TriMesh {
+        let normals = head.compute_vertex_normals();
+        let vertices: Vec<glam::Vec3> = head
+            .vertices
+            .iter()
+            .zip(&normals)
+            .map(|(&v, &n)| if v.z > -0.1 && (v.y > -0.02 || v.x.abs() > 0.06) { v + 0.02 * n } else { v })
+            .collect();
+        TriMesh::new(vertices, head.triangles.clone(), None, None).unwrap()
+    }
+
+    /// A runner-up within [`CLOSE_CALL`] of the winner's cost is a warning that names both costs;
+    /// a clear win, or no runner-up, is none.
+    #[test]
+    fn a_close_runner_up_is_a_warning() {
+        let score = PoseScore { cost: 0.5, on_surface: 0.5, inside: 0.3, outside: 0.2, rms_on_surface: 0.001 };
+        let fit = |r: Option<f64>| FitResult {
+            to_canonical: Similarity { scale: 1.0, rotation: DMat3::IDENTITY, translation: DVec3::ZERO },
+            residual_mm: 1.0,
+            score,
+            runner_up_cost: r,
+            shape: None,
+        };
+        let w = fit(Some(0.52)).close_call().expect("a warning");
+        assert!(w.contains("0.520") && w.contains("0.500") && w.contains("fitted_head.ply"), "{w}");
+        assert!(fit(Some(0.56)).close_call().is_none());
+        assert!(fit(None).close_call().is_none());
+    }
+
+    /// The twin [`Search::run`] refines beside its best start: the same head turned half a turn about
+    /// its own up axis, through its own centre (the face where the back of the head was), at the
+    /// same scale; turned twice, the start again.
+    #[test]
+    fn the_twin_of_a_pose_has_its_face_at_the_back() {
+        let t = Template::bundled();
+        let template = HeadTemplate::new(&t.head, Some(&t.scalp), 500, 7).unwrap();
+        let bvh = RawSurface::new(t.head.clone(), 0);
+        let cloud = SurfaceSamples::new(vec![(DVec3::ZERO, DVec3::Z)]);
+        let opts = FitOptions::default();
+        let ctx = Search { template: &template, bvh: &bvh, cloud: &cloud, opts: &opts, tau: 0.005, framing: None };
+        let pose = Similarity {
+            scale: 3.5,
+            rotation: DMat3::from_axis_angle(DVec3::new(1.0, -2.0, 0.5).normalize(), 1.1),
+            translation: DVec3::new(0.3, -0.2, 1.7),
+        };
+        let twin = ctx.turned_about_up(&pose);
+        let c = template.stats.centre;
+        assert!(twin.apply(c).distance(pose.apply(c)) < 1e-12);
+        assert!((twin.scale - pose.scale).abs() < 1e-12);
+        assert!((twin.rotation_angle_to(&pose) - 180.0).abs() < 1e-6);
+        // The up axis stays; the face (−Y in the template) goes where the back (+Y) was.
+        let up = pose.rotation * DVec3::Z;
+        assert!((twin.rotation * DVec3::Z).distance(up) < 1e-12);
+        let nose = DVec3::new(0.0, -0.1, 0.03);
+        let back = DVec3::new(2.0 * c.x - nose.x, 2.0 * c.y - nose.y, nose.z);
+        assert!(twin.apply(nose).distance(pose.apply(back)) < 1e-12);
+        let again = ctx.turned_about_up(&twin);
+        assert!(again.rotation_angle_to(&pose) < 1e-6 && again.translation.distance(pose.translation) < 1e-12);
+    }
 
     /// The bundled head under hair with a collar (a closed box from the shoulders to the jaw) in the
     /// canonical frame, and a start 12 % too large about the face and turned 3°: the refinement on
@@ -560,19 +699,11 @@ mod tests {
             let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
             TriMesh::new((0..8).map(c).collect(), triangles, None, None).unwrap()
         };
-        // Hair 2 cm thick over the top, the sides and the back, down to the nape (the face and the
-        // throat bare): the skin the rest of the fit would hold on to is under it.
-        let normals = t.head.compute_vertex_normals();
-        let mut vertices: Vec<glam::Vec3> = t
-            .head
-            .vertices
-            .iter()
-            .zip(&normals)
-            .map(|(&v, &n)| if v.z > -0.1 && (v.y > -0.02 || v.x.abs() > 0.06) { v + 0.02 * n } else { v })
-            .collect();
+        let hair = under_hair(&t.head);
+        let mut vertices = hair.vertices.clone();
         let base = vertices.len() as u32;
         vertices.extend_from_slice(&collar.vertices);
-        let mut triangles = t.head.triangles.clone();
+        let mut triangles = hair.triangles.clone();
         triangles.extend(collar.triangles.iter().map(|tr| tr.map(|i| i + base)));
         let raw = TriMesh::new(vertices, triangles, None, None).unwrap();
         let bvh = RawSurface::new(raw, 0);

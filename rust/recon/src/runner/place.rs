@@ -48,7 +48,12 @@ pub(super) fn place(
             HeadOut::load(&ctx, from)
         };
         match made {
-            Ok(o) => Some(o),
+            Ok(o) => {
+                if let Some(w) = o.fit.get("warning").and_then(|w| w.as_str()) {
+                    report.warnings.push(w.to_string());
+                }
+                Some(o)
+            }
             // Wanted only for the masks: the run goes on without them (a warning says so below).
             Err(ReconError::HeadFit(msg)) if need == Need::ForMasks => {
                 report.warnings.push(format!("no hair masks were made: the head fit failed: {msg}"));
