@@ -17,6 +17,8 @@
 //! A hand-written BVH keeps this crate small: we need three queries, all in f32 glam, and the
 //! collision crates we looked at (parry3d 0.31) bring their own math types.
 
+use std::sync::OnceLock;
+
 use glam::{Vec2, Vec3};
 use rustc_hash::FxHashMap;
 use thiserror::Error;
@@ -189,6 +191,20 @@ pub struct Bvh {
     mesh: TriMesh,
     nodes: Vec<Node>,
     order: Vec<u32>,
+    /// The welded edges and pseudo-normals, made on the first query that needs them (inside
+    /// tests, the rim, folds): closest points and rays alone never do, and on a photogrammetry
+    /// mesh of millions of triangles they take twice as long to make as the tree.
+    topology: OnceLock<Topology>,
+    /// Per triangle, whether a corner has a folded edge, where inside tests vote over the
+    /// neighbourhood (empty when no edge folds; see `mesh/folds.rs`).
+    doubtful: Vec<bool>,
+    /// The radius of that vote (zero when nothing is doubtful).
+    vote_radius: f32,
+}
+
+/// What inside tests and the rim need of a mesh's connectivity.
+#[derive(Debug, Clone)]
+struct Topology {
     /// Angle-weighted pseudo-normals for vertices and for edges (keyed by sorted vertex pair), with
     /// the number of faces at each edge.
     vertex_pn: Vec<Vec3>,
@@ -197,11 +213,46 @@ pub struct Bvh {
     boundary_vertex: Vec<bool>,
     /// Each vertex's first vertex at the same position (the key of the two tables above).
     weld: Vec<u32>,
-    /// Per triangle, whether a corner has a folded edge, where inside tests vote over the
-    /// neighbourhood (empty when no edge folds; see `mesh/folds.rs`).
-    doubtful: Vec<bool>,
-    /// The radius of that vote (zero when nothing is doubtful).
-    vote_radius: f32,
+}
+
+impl Topology {
+    fn of(mesh: &TriMesh) -> Self {
+        let n = mesh.triangles.len();
+        // Vertices at the same position are one for the pseudo-normals and the rim (meshes from
+        // Blender split vertices at UV seams, which would otherwise look like open edges).
+        let mut first: FxHashMap<[u32; 3], u32> =
+            FxHashMap::with_capacity_and_hasher(mesh.vertices.len(), Default::default());
+        let weld: Vec<u32> = (0..mesh.vertices.len() as u32)
+            .map(|i| *first.entry(mesh.vertices[i as usize].to_array().map(f32::to_bits)).or_insert(i))
+            .collect();
+        // Angle-weighted pseudo-normals.
+        let mut vertex_pn = vec![Vec3::ZERO; mesh.vertices.len()];
+        let mut edge_pn = FxHashMap::with_capacity_and_hasher(n * 3 / 2, Default::default());
+        for i in 0..n {
+            let t = mesh.triangles[i].map(|v| weld[v as usize]);
+            let fnrm = mesh.face_normal(i);
+            let c = mesh.corners(i);
+            for k in 0..3 {
+                let a = c[k];
+                let b = c[(k + 1) % 3];
+                let d = c[(k + 2) % 3];
+                let angle = (b - a).normalize_or_zero().dot((d - a).normalize_or_zero()).clamp(-1.0, 1.0).acos();
+                vertex_pn[t[k] as usize] += angle * fnrm;
+                let (x, y) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                let e = edge_pn.entry((x, y)).or_insert((Vec3::ZERO, 0));
+                e.0 += fnrm;
+                e.1 += 1;
+            }
+        }
+        let mut boundary_vertex = vec![false; mesh.vertices.len()];
+        for (&(a, b), &(_, faces)) in &edge_pn {
+            if faces == 1 {
+                boundary_vertex[a as usize] = true;
+                boundary_vertex[b as usize] = true;
+            }
+        }
+        Self { vertex_pn, edge_pn, boundary_vertex, weld }
+    }
 }
 
 const LEAF_SIZE: usize = 4;
@@ -259,40 +310,7 @@ impl Bvh {
             stack.push((left, s, mid));
             stack.push((left + 1, mid, e));
         }
-        // Vertices at the same position are one for the pseudo-normals and the rim (meshes from
-        // Blender split vertices at UV seams, which would otherwise look like open edges).
-        let mut first: FxHashMap<[u32; 3], u32> =
-            FxHashMap::with_capacity_and_hasher(mesh.vertices.len(), Default::default());
-        let weld: Vec<u32> = (0..mesh.vertices.len() as u32)
-            .map(|i| *first.entry(mesh.vertices[i as usize].to_array().map(f32::to_bits)).or_insert(i))
-            .collect();
-        // Angle-weighted pseudo-normals.
-        let mut vertex_pn = vec![Vec3::ZERO; mesh.vertices.len()];
-        let mut edge_pn = FxHashMap::with_capacity_and_hasher(n * 3 / 2, Default::default());
-        for i in 0..n {
-            let t = mesh.triangles[i].map(|v| weld[v as usize]);
-            let fnrm = mesh.face_normal(i);
-            let c = mesh.corners(i);
-            for k in 0..3 {
-                let a = c[k];
-                let b = c[(k + 1) % 3];
-                let d = c[(k + 2) % 3];
-                let angle = (b - a).normalize_or_zero().dot((d - a).normalize_or_zero()).clamp(-1.0, 1.0).acos();
-                vertex_pn[t[k] as usize] += angle * fnrm;
-                let (x, y) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
-                let e = edge_pn.entry((x, y)).or_insert((Vec3::ZERO, 0));
-                e.0 += fnrm;
-                e.1 += 1;
-            }
-        }
-        let mut boundary_vertex = vec![false; mesh.vertices.len()];
-        for (&(a, b), &(_, faces)) in &edge_pn {
-            if faces == 1 {
-                boundary_vertex[a as usize] = true;
-                boundary_vertex[b as usize] = true;
-            }
-        }
-        Self { mesh, nodes, order, vertex_pn, edge_pn, boundary_vertex, weld, doubtful: Vec::new(), vote_radius: 0.0 }
+        Self { mesh, nodes, order, topology: OnceLock::new(), doubtful: Vec::new(), vote_radius: 0.0 }
     }
 
     /// [`Bvh::new`] for a measured surface (a photogrammetry or fused mesh): where its faces fold
@@ -301,7 +319,9 @@ impl Bvh {
     /// (the ears, the nostrils) fold by more than 90° too, and the pseudo-normal is exact there.
     pub fn with_fold_vote(mesh: TriMesh) -> Self {
         let mut bvh = Self::new(mesh);
-        bvh.doubtful = folds::doubtful_triangles(&bvh.mesh.triangles, &bvh.weld, &bvh.edge_pn);
+        let topo = bvh.topology();
+        let doubtful = folds::doubtful_triangles(&bvh.mesh.triangles, &topo.weld, &topo.edge_pn);
+        bvh.doubtful = doubtful;
         if !bvh.doubtful.is_empty() {
             bvh.vote_radius = folds::VOTE_RADIUS_EDGES * folds::mean_edge(&bvh);
         }
@@ -321,10 +341,14 @@ impl Bvh {
         &self.mesh
     }
 
+    fn topology(&self) -> &Topology {
+        self.topology.get_or_init(|| Topology::of(&self.mesh))
+    }
+
     /// The mesh's rim: its edges with one face (after welding), as pairs of end points, in a fixed order.
     pub fn rim_edges(&self) -> Vec<(Vec3, Vec3)> {
         let mut e: Vec<(u32, u32)> =
-            self.edge_pn.iter().filter(|(_, &(_, faces))| faces == 1).map(|(&k, _)| k).collect();
+            self.topology().edge_pn.iter().filter(|(_, &(_, faces))| faces == 1).map(|(&k, _)| k).collect();
         e.sort_unstable();
         e.into_iter().map(|(a, b)| (self.mesh.vertices[a as usize], self.mesh.vertices[b as usize])).collect()
     }
@@ -339,6 +363,10 @@ impl Bvh {
     /// opened. The result is the same as without the hint: every triangle at the smallest distance
     /// is still visited, in the same order.
     pub fn closest_point_near(&self, p: Vec3, max_dist: f32, hint: Option<u32>) -> Option<ClosestPoint> {
+        // A NaN point's box distances compare false with everything: it would visit every node.
+        if !p.is_finite() {
+            return None;
+        }
         let mut best: Option<ClosestPoint> = None;
         let mut best_d2 = if max_dist.is_finite() { max_dist * max_dist } else { f32::INFINITY };
         if let Some(t) = hint.filter(|&t| (t as usize) < self.mesh.triangles.len()) {
@@ -414,7 +442,8 @@ impl Bvh {
 
     /// Whether a closest point lies on the mesh's rim (a boundary edge or vertex), not inside a face.
     fn on_boundary(&self, cp: &ClosestPoint) -> bool {
-        let t = self.mesh.triangles[cp.triangle as usize].map(|v| self.weld[v as usize]);
+        let topo = self.topology();
+        let t = self.mesh.triangles[cp.triangle as usize].map(|v| topo.weld[v as usize]);
         let eps = 1e-6;
         let zero: Vec<usize> = (0..3).filter(|&k| cp.bary[k] <= eps).collect();
         match zero.len() {
@@ -422,11 +451,11 @@ impl Bvh {
             1 => {
                 let k = zero[0];
                 let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                self.edge_pn.get(&(a.min(b), a.max(b))).is_some_and(|e| e.1 == 1)
+                topo.edge_pn.get(&(a.min(b), a.max(b))).is_some_and(|e| e.1 == 1)
             }
             _ => {
                 let k = (0..3).find(|k| !zero.contains(k)).unwrap_or(0);
-                self.boundary_vertex[t[k] as usize]
+                topo.boundary_vertex[t[k] as usize]
             }
         }
     }
@@ -434,7 +463,8 @@ impl Bvh {
     /// Outward pseudo-normal at a closest point: the face normal inside a face, the edge or vertex
     /// pseudo-normal on an edge or a corner.
     pub fn pseudo_normal(&self, cp: &ClosestPoint) -> Vec3 {
-        let t = self.mesh.triangles[cp.triangle as usize].map(|v| self.weld[v as usize]);
+        let topo = self.topology();
+        let t = self.mesh.triangles[cp.triangle as usize].map(|v| topo.weld[v as usize]);
         let eps = 1e-6;
         let zero: Vec<usize> = (0..3).filter(|&k| cp.bary[k] <= eps).collect();
         match zero.len() {
@@ -442,11 +472,11 @@ impl Bvh {
             1 => {
                 let k = zero[0];
                 let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                self.edge_pn.get(&(a.min(b), a.max(b))).map_or(Vec3::ZERO, |e| e.0)
+                topo.edge_pn.get(&(a.min(b), a.max(b))).map_or(Vec3::ZERO, |e| e.0)
             }
             _ => {
                 let k = (0..3).find(|k| !zero.contains(k)).unwrap_or(0);
-                self.vertex_pn[t[k] as usize]
+                topo.vertex_pn[t[k] as usize]
             }
         }
     }

@@ -261,5 +261,52 @@ fn plane_step(pairs: &[(DVec3, Match)]) -> Option<Similarity> {
     let scale = sol[3].exp();
     let tau = DVec3::new(sol[4], sol[5], sol[6]) * spread;
     // y ↦ scale · R (y − c) + c + τ.
-    Some(Similarity { scale, rotation, translation: c + tau - scale * (rotation * c) })
+    let step = Similarity { scale, rotation, translation: c + tau - scale * (rotation * c) };
+    // A near-singular system can ask for a log-scale change so large that exp() overflows or
+    // underflows; the step is then no step.
+    (step.scale.is_finite() && step.scale > 0.0 && step.translation.is_finite()).then_some(step)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points on a double cone with its apex at their centre (x · n = 0 for every point), each
+    /// moved 1e-12 along its normal and matched 1 cm further along it: the scale's column of the
+    /// system is rounding-sized and nothing else explains the residual, so the solve asks for a
+    /// log-scale of about 1e10, which exp() turns into an infinite scale (and the pose into NaN,
+    /// whose closest-point queries then visited every node of the raw mesh's tree). Such a step
+    /// must come back as no step, never as a non-finite one.
+    #[test]
+    fn a_degenerate_set_of_pairs_never_gives_a_non_finite_step() {
+        let mut pairs = Vec::new();
+        for nappe in [1.0, -1.0] {
+            for i in 0..12 {
+                let phi = std::f64::consts::TAU * i as f64 / 12.0;
+                for r in [0.02, 0.05, 0.08] {
+                    let n = DVec3::new(phi.cos(), phi.sin(), -nappe) / 2f64.sqrt();
+                    let x = DVec3::new(r * phi.cos(), r * phi.sin(), nappe * r) + 1e-12 * n;
+                    let q = x - 0.01 * n;
+                    pairs.push((x, Match { point: q, normal: n, distance: 0.01 }));
+                }
+            }
+        }
+        let step = plane_step(&pairs);
+        if let Some(s) = step {
+            assert!(s.scale.is_finite() && s.scale > 0.0 && s.translation.is_finite(), "{s:?}");
+        }
+        // An ellipsoid's points matched to the same ellipsoid 10 % larger: a regular system, whose
+        // step is the linearised scale change, exp(0.1).
+        let mut pairs = Vec::new();
+        for i in 1..8 {
+            for j in 0..12 {
+                let (th, ph) = (std::f64::consts::PI * i as f64 / 8.0, std::f64::consts::TAU * j as f64 / 12.0);
+                let x = DVec3::new(0.08 * th.sin() * ph.cos(), 0.06 * th.sin() * ph.sin(), 0.1 * th.cos());
+                let n = (x / DVec3::new(0.0064, 0.0036, 0.01)).normalize();
+                pairs.push((x, Match { point: 1.1 * x, normal: n, distance: 0.1 * x.length() }));
+            }
+        }
+        let s = plane_step(&pairs).expect("a regular system");
+        assert!((s.scale - 0.1f64.exp()).abs() < 1e-6, "{s:?}");
+    }
 }
