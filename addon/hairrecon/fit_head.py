@@ -4,7 +4,9 @@ frame. The user may sculpt or move them; Reconstruct Hair grows hair on the Hair
 becomes the fitted scalp when none was chosen (or when the chosen one is an earlier fitted scalp).
 
 The inputs follow Reconstruct Hair's rules: the cameras of the panel's Cameras collection and its Raw
-Mesh (world space, modifiers applied). The fit reads no photo. The library fits in a Python thread with
+Mesh (world space, modifiers applied), and the landmarks the user placed as empties named after them
+(``nose_tip``, ``chin``, ``eye_outer_left``, ...; three or more start the fit from the pose they give).
+The fit reads no photo. The library fits in a Python thread with
 the GIL released (a fit takes seconds), while a modal operator keeps Blender responsive and builds the
 objects on the main thread at the end; in background mode (scripts, tests) ``execute`` runs it
 synchronously. A failed fit reports one error and leaves the scene as it was.
@@ -36,14 +38,17 @@ MARK = "hairrecon_fitted"
 # custom property holding the similarity from the scene's frame to the canonical one (JSON)
 FRAME = FRAME_PROPERTY
 # what to do when the fit fails, added to the library's message
-ADVICE = "Pick the raw mesh of the head (with the face) in Raw Mesh, or give the scalp by hand (Hair tab > Scalp)"
+ADVICE = ("Pick the raw mesh of the head (with the face) in Raw Mesh, place landmarks on it (empties named "
+          "nose_tip, chin, eye_outer_left, eye_outer_right, ear_left, ear_right; left and right the subject's own), "
+          "or give the scalp by hand (Hair tab > Scalp)")
 
 class FitRun:
     """One fit: the capture written from the scene, then ``hairrecon.fit_head`` on a thread."""
 
-    def __init__(self, root: Path, capture: Path, raw_name: str):
+    def __init__(self, root: Path, capture: Path, raw_name: str, landmarks: int = 0):
         self.root = root
         self.capture = capture
+        self.landmarks = landmarks  # how many landmark empties the fit starts from
         self.raw_name = raw_name  # the raw mesh object, named in messages instead of the temporary file
         self.result: Optional[dict] = None
         self.error: Optional[BaseException] = None
@@ -63,18 +68,23 @@ class FitRun:
             cameras = [(o.name, opencv_from_blender(blender_camera(o, context.scene))) for o in cams]
             raw = scene_read.raw_mesh_data(s.raw_mesh, context.evaluated_depsgraph_get())
             check_mesh(raw, "raw mesh")
+            names = hr.head_landmarks() if hasattr(hr, "head_landmarks") else {}
+            marks = scene_read.landmarks(context.scene, names)
         except (CameraInputError, CaptureInputError) as e:
             raise UserError(str(e)) from None
         root = Path(tempfile.mkdtemp(prefix="hairrecon-fit-"))
         try:
             capture = write_fit_capture(root / "capture", cameras, raw, hr)
+            if marks:
+                # the library reads them beside capture.json, in the capture's (the scene's) frame
+                (capture.parent / "landmarks.json").write_text(json.dumps(marks))
         except CaptureInputError as e:
             shutil.rmtree(root, ignore_errors=True)
             raise UserError(str(e)) from None
         except Exception:
             shutil.rmtree(root, ignore_errors=True)
             raise
-        return cls(root, capture, raw.name)
+        return cls(root, capture, raw.name, len(marks))
 
     def run(self):
         """The fit itself (any thread: touches no bpy); removes the temporary folder afterwards."""
@@ -99,6 +109,7 @@ class FitRun:
             hr = library()
             if isinstance(self.error, hr.Error):
                 msg = str(self.error).replace(str(self.capture.parent / "raw_mesh.ply"), repr(self.raw_name))
+                msg = msg.replace(f"the landmarks {self.capture.parent / 'landmarks.json'}", "the landmark empties")
                 raise UserError(f"Fit Head failed: {msg}. {ADVICE}") from None
             raise self.error
         fit = self.result
@@ -121,8 +132,11 @@ class FitRun:
         used = use_fitted(context.scene.hairrecon, objs["head"], objs["scalp"])
         seconds = time.monotonic() - self.started
         scale = fit["to_canonical"]["scale"]
+        from_marks = ""
+        if fit.get("landmarks_rms_mm") is not None:
+            from_marks = f", from {self.landmarks} landmarks {fit['landmarks_rms_mm']:.1f} mm from the template's"
         msg = (
-            f"Fitted the head in {seconds:.1f} s (residual {fit['residual_mm']:.2f} mm, "
+            f"Fitted the head in {seconds:.1f} s (residual {fit['residual_mm']:.2f} mm{from_marks}, "
             f"{100 * fit['on_mesh_fraction']:.0f}% of the skin on the raw mesh, {1 / scale:.4g} scene units per metre): "
             f"added {objs['head'].name!r} and {objs['scalp'].name!r}; "
         )

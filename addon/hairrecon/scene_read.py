@@ -32,6 +32,28 @@ def cameras_of(collection: Optional[bpy.types.Collection]) -> list:
     return sorted((o for o in collection.all_objects if o.type == "CAMERA"), key=lambda o: o.name)
 
 
+def landmarks(scene: bpy.types.Scene, names) -> dict:
+    """The landmarks the user placed for Fit Head: the scene's empties named after the library's
+    landmarks (``nose_tip``, ``eye_outer_left``, ...; case, spaces and hyphens aside: "Nose Tip"
+    is ``nose_tip``), as name -> world location [x, y, z]. Two empties for one landmark are an
+    error (CaptureInputError)."""
+    wanted = set(names)
+    found: dict = {}
+    owner: dict = {}
+    for obj in sorted(scene.objects, key=lambda o: o.name):
+        if obj.type != "EMPTY":
+            continue
+        key = obj.name.strip().lower().replace(" ", "_").replace("-", "_")
+        if key not in wanted:
+            continue
+        if key in found:
+            raise CaptureInputError(
+                f"the empties {owner[key]!r} and {obj.name!r} are both the landmark {key}: delete or rename one")
+        found[key] = [float(c) for c in obj.matrix_world.translation]
+        owner[key] = obj.name
+    return found
+
+
 def image_to_uint8(image: bpy.types.Image, channels: int = 3, data: bool = False) -> np.ndarray:
     """An image's pixels as uint8 (H, W, channels), top row first. Colour images with a float buffer
     (16-bit PNG, EXR) are encoded to sRGB; ``data`` images (masks: coverage, not colour) are stored as

@@ -430,14 +430,19 @@ def test_bad_inputs_give_one_clear_error_and_change_nothing(extension_zip, tmp_p
 def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     """Fit Head on an imported capture of the bundled head moved by a similarity (scale 40, turned, offset;
     fit_fixture.py): the Fitted Scalp object lies on the true scalp, in the scene's frame, and becomes the
-    panel's scalp, which Reconstruct Hair's capture takes; on a sphere's capture it reports one error and changes nothing."""
-    from fit_fixture import SCALE, write_capture
+    panel's scalp, which Reconstruct Hair's capture takes; on a sphere's capture it reports one error and changes
+    nothing. Landmark empties: left and right swapped, or two for one landmark, are one error each that changes
+    nothing; placed right, the fit from them lies on the true scalp."""
+    from fit_fixture import SCALE, to_capture, write_capture
 
     truth = write_capture(hairrecon, tmp_path / "good", photos=True)["scalp"]
     hairrecon.write_mesh(str(tmp_path / "truth_scalp.ply"), *truth)
     write_capture(hairrecon, tmp_path / "sphere", raw="sphere", photos=True)
+    # the bundled head's landmarks where the capture has them, for empties named after them
+    marks = {n: to_capture(np.array([q]))[0].tolist() for n, q in hairrecon.head_landmarks().items()}
     out = run_worker("fit_head", tmp_path / "user", zip=str(extension_zip), good=str(tmp_path / "good"),
-                     sphere=str(tmp_path / "sphere"), truth_scalp=str(tmp_path / "truth_scalp.ply"), scale=SCALE)
+                     sphere=str(tmp_path / "sphere"), truth_scalp=str(tmp_path / "truth_scalp.ply"), scale=SCALE,
+                     landmarks=marks)
     assert out["result"] == ["FINISHED"] and out["error"] is None, out["error"]
     assert out["before"]["scalp"] is None
     assert out["collection"] == ["Fitted Head", "Fitted Scalp"] and out["linked"]
@@ -455,6 +460,15 @@ def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     assert out["sphere_result"] is None and err and err.strip().count("\n") == 0, err
     assert "does not fit the raw mesh" in err and "'raw_mesh" in err and "hairrecon-fit-" not in err, err
     assert out["sphere_unchanged"]
+    err = out["swapped_error"] or ""
+    assert out["swapped_result"] is None and err.strip().count("\n") == 0, err
+    assert "the landmark empties:" in err and "subject's own" in err and "hairrecon-fit-" not in err, err
+    assert out["swapped_unchanged"]
+    err = out["twice_error"] or ""
+    assert out["twice_result"] is None and "'Chin' and 'chin' are both the landmark chin" in err, err
+    assert out["twice_unchanged"]
+    assert out["landmarks_result"] == ["FINISHED"] and out["landmarks_error"] is None, out["landmarks_error"]
+    assert out["landmarks_fitted"] == 1 and out["landmarks_scalp_err_mm"] < 1.0, out
 
 
 def test_import_colmap_builds_the_scene_and_refuses_bad_input(extension_zip, tmp_path):

@@ -13,7 +13,7 @@ import pytest
 
 hairrecon = pytest.importorskip("hairrecon")
 
-from fit_fixture import OFFSET, ROTATION, SCALE, write_capture  # noqa: E402
+from fit_fixture import OFFSET, ROTATION, SCALE, to_capture, write_capture  # noqa: E402
 
 
 def test_fit_head_recovers_the_frame_and_the_scalp(tmp_path):
@@ -69,8 +69,45 @@ def test_fit_head_on_a_sphere_raises_a_clear_error(tmp_path):
     with pytest.raises(hairrecon.CaptureError) as e:
         hairrecon.fit_head(str(cap))
     msg = str(e.value)
-    assert "does not fit the raw mesh" in msg and "landmarks or a scalp by hand" in msg, msg
+    assert "does not fit the raw mesh" in msg and "place landmarks on it (landmarks.json" in msg, msg
+    assert "a scalp by hand" in msg, msg
     assert "raw.ply" in msg, msg
+
+
+def test_fit_head_from_landmarks(tmp_path):
+    """Landmarks beside capture.json (or given as a file) start the fit from the pose they give: the
+    frame is recovered and the report says how far they lie from the template's; swapped sides are
+    one error naming the file and the convention; a landmark name the library does not know too."""
+    cap = tmp_path / "cap"
+    write_capture(hairrecon, cap)
+    names = hairrecon.head_landmarks()
+    assert sorted(names) == ["chin", "ear_left", "ear_right", "eye_outer_left", "eye_outer_right", "nose_tip"]
+    # the subject's left at +X, the face toward -Y, the nose tip foremost
+    assert names["eye_outer_left"][0] > 0 > names["eye_outer_right"][0]
+    assert names["nose_tip"][1] == min(p[1] for p in names.values())
+    placed = {n: to_capture(np.array([p]))[0].tolist() for n, p in names.items()}
+    (cap / "landmarks.json").write_text(json.dumps(placed))
+    fit = hairrecon.fit_head(str(cap))
+    frame = fit["to_canonical"]
+    r = np.array(frame["rotation"])
+    angle = np.degrees(np.arccos(np.clip((np.trace(r @ ROTATION) - 1) / 2, -1, 1)))
+    assert angle < 1.0 and abs(frame["scale"] * SCALE - 1) < 0.01, (angle, frame["scale"])
+    # the landmarks are the template's own, so the fit puts them back within a millimetre
+    assert fit["landmarks_rms_mm"] is not None and fit["landmarks_rms_mm"] < 1.0, fit["landmarks_rms_mm"]
+    assert hairrecon.fit_head(str(cap / "capture.json"), use_cameras=False)["landmarks_rms_mm"] < 1.0
+
+    # the viewer's left taken for the subject's: one error naming the file and the convention
+    swapped = dict(placed)
+    for a, b in (("eye_outer_left", "eye_outer_right"), ("ear_left", "ear_right")):
+        swapped[a], swapped[b] = placed[b], placed[a]
+    other = tmp_path / "swapped.json"
+    other.write_text(json.dumps(swapped))
+    with pytest.raises(hairrecon.CaptureError) as e:
+        hairrecon.fit_head(str(cap), landmarks=str(other))
+    assert "swapped.json" in str(e.value) and "subject's own" in str(e.value), str(e.value)
+    other.write_text(json.dumps({"nose": [0, 0, 0], **placed}))
+    with pytest.raises(hairrecon.CaptureError, match='unknown landmark "nose"'):
+        hairrecon.fit_head(str(cap), landmarks=str(other))
 
 
 def test_fit_head_argument_errors(tmp_path):

@@ -100,6 +100,50 @@ def task_fit_head(p):
     before = snapshot()
     out["sphere_result"], out["sphere_error"] = run_op(bpy.ops.hairrecon.fit_head)
     out["sphere_unchanged"] = snapshot() == before and (s.scalp_source, s.scalp_object, s.head_object) == panel
+
+    # landmarks as empties, on the good capture again: the viewer's left taken for the subject's is one
+    # error naming the empties, nothing changed; two empties for one landmark too; placed right (one
+    # named as a user might, "Nose Tip"), the fit starts from them and its scalp lies on the true one
+    run_op(bpy.ops.hairrecon.import_capture, directory=p["good"])
+    swap = {"eye_outer_left": "eye_outer_right", "eye_outer_right": "eye_outer_left",
+            "ear_left": "ear_right", "ear_right": "ear_left"}
+
+    def place(names):
+        made = []
+        for name, xyz in p["landmarks"].items():
+            e = bpy.data.objects.new(names.get(name, name), None)
+            e.location = xyz
+            bpy.context.scene.collection.objects.link(e)
+            made.append(e)
+        return made
+
+    def remove(made):
+        for e in made:
+            bpy.data.objects.remove(e)
+
+    made = place(swap)
+    before = snapshot()
+    out["swapped_result"], out["swapped_error"] = run_op(bpy.ops.hairrecon.fit_head)
+    out["swapped_unchanged"] = snapshot() == before
+    extra = bpy.data.objects.new("Chin", None)
+    bpy.context.scene.collection.objects.link(extra)
+    before = snapshot()
+    out["twice_result"], out["twice_error"] = run_op(bpy.ops.hairrecon.fit_head)
+    out["twice_unchanged"] = snapshot() == before
+    bpy.data.objects.remove(extra)
+    remove(made)
+    made = place({"nose_tip": "Nose Tip"})
+    out["landmarks_result"], out["landmarks_error"] = run_op(bpy.ops.hairrecon.fit_head)
+    fitted = [o for o in bpy.data.objects if o.get("hairrecon_fitted") == "scalp" and o is not scalp]
+    if len(fitted) == 1:
+        me, m = fitted[0].data, np.array(fitted[0].matrix_world)
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        truth = hairrecon.read_mesh(p["truth_scalp"])["vertices"].astype(np.float64)
+        out["landmarks_scalp_err_mm"] = float((np.linalg.norm(world - truth, axis=1) / float(p["scale"]) * 1e3).max())
+    out["landmarks_fitted"] = len(fitted)
+    remove(made)
     return out
 
 

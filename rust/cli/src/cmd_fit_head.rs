@@ -49,6 +49,12 @@ pub struct FitHeadArgs {
     /// Keep the template's own shape (the similarity alone): no fit of the subject's head shape.
     #[arg(long)]
     pub no_shape: bool,
+    /// Landmarks placed on the raw mesh, in the capture's frame: a JSON object of names
+    /// (nose_tip, chin, eye_outer_left, eye_outer_right, ear_left, ear_right; left and right the
+    /// subject's own) to [x, y, z], three or more. The fit starts from the pose they give instead
+    /// of searching. Default: the capture's landmarks.json, when it has one.
+    #[arg(long, value_name = "JSON")]
+    pub landmarks: Option<PathBuf>,
 }
 
 pub fn run(args: FitHeadArgs) -> CmdResult {
@@ -70,7 +76,7 @@ pub fn run(args: FitHeadArgs) -> CmdResult {
         deform: defaults.deform.clone().filter(|_| !args.no_shape),
         ..defaults
     };
-    let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras)?;
+    let fitted = fit_capture(&json_path, &template, &opts, !args.no_cameras, args.landmarks.as_deref())?;
     if let Some(w) = fitted.fit.close_call() {
         eprintln!("warning: {w}");
     }

@@ -40,7 +40,7 @@ fn mesh_to_py<'py>(py: Python<'py>, m: &TriMesh) -> PyResult<MeshArrays<'py>> {
 /// has no skin (`InputError`).
 fn fit_err(e: CaptureFitError) -> PyErr {
     match e {
-        CaptureFitError::Capture(_) | CaptureFitError::Fit { .. } => capture_err(e),
+        CaptureFitError::Capture(_) | CaptureFitError::Fit { .. } | CaptureFitError::Landmarks(_) => capture_err(e),
         CaptureFitError::Format(_) => format_err(e),
         CaptureFitError::Template => input_err(e),
     }
@@ -78,6 +78,7 @@ fn result_to_py<'py>(py: Python<'py>, f: &CaptureFit, written: Option<Vec<PathBu
     d.set_item("covered_fraction", f.fit.score.inside)?;
     d.set_item("exposed_fraction", f.fit.score.outside)?;
     d.set_item("cost", f.fit.score.cost)?;
+    d.set_item("landmarks_rms_mm", f.fit.landmarks_mm)?;
     match f.scalp_error {
         Some(e) => {
             let se = PyDict::new(py);
@@ -98,10 +99,15 @@ fn result_to_py<'py>(py: Python<'py>, f: &CaptureFit, written: Option<Vec<PathBu
 /// and, with `use_cameras`, its cameras (they surround the head and give its up direction).
 /// `template` is a head in the canonical frame (.ply or .obj; metres, Z up, the face toward −Y)
 /// with its scalp `scalp` (default: scalp.ply beside it); default: the bundled head and scalp.
+/// `landmarks` is a JSON file of landmarks placed on the raw mesh (names to `[x, y, z]` in the
+/// capture's frame: nose_tip, chin, eye_outer_left, eye_outer_right, ear_left, ear_right, three or
+/// more; left and right the subject's own): the fit starts from the pose they give instead of
+/// searching. Default: the capture's landmarks.json, when it has one.
 ///
 /// Returns a dict: `to_canonical` (`scale`, `rotation` as 3×3 rows, `translation`: capture
 /// coordinates → canonical metres, x ↦ scale·R·x + t), `residual_mm`, `on_mesh_fraction`,
-/// `covered_fraction`, `exposed_fraction`, `cost`, `scalp_error` (the fitted scalp's distance to
+/// `covered_fraction`, `exposed_fraction`, `cost`, `landmarks_rms_mm` (with landmarks: their RMS
+/// distance from the template's after the fit, canonical mm; else None), `scalp_error` (the fitted scalp's distance to
 /// the capture's own scalp, `{"mean_mm", "p95_mm", "max_mm"}`, or None when it has none), `head`
 /// and `scalp` (the fitted template as `(vertices float32 (N, 3), triangles uint32 (M, 3))` in the
 /// capture's frame) and `written`. With `write=True`, the fitted head and scalp become the
@@ -112,7 +118,7 @@ fn result_to_py<'py>(py: Python<'py>, f: &CaptureFit, written: Option<Vec<PathBu
 /// what to do) or the capture is invalid, `FormatError` when a mesh cannot be read or a file
 /// written, `InputError` for a scalp without a template or a template with no skin.
 #[pyfunction]
-#[pyo3(signature = (capture, write=false, template=None, scalp=None, use_cameras=true))]
+#[pyo3(signature = (capture, write=false, template=None, scalp=None, use_cameras=true, landmarks=None))]
 fn fit_head<'py>(
     py: Python<'py>,
     capture: PathBuf,
@@ -120,13 +126,15 @@ fn fit_head<'py>(
     template: Option<PathBuf>,
     scalp: Option<PathBuf>,
     use_cameras: bool,
+    landmarks: Option<PathBuf>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let json_path = if capture.is_dir() { capture.join("capture.json") } else { capture };
     let (fitted, written) = py.allow_threads(|| {
         guard(|| {
             let t0 = Instant::now();
             let (tpl, scalp_path) = template_of(template.as_deref(), scalp.as_deref())?;
-            let fitted = fit_capture(&json_path, &tpl, &FitOptions::default(), use_cameras).map_err(fit_err)?;
+            let fitted = fit_capture(&json_path, &tpl, &FitOptions::default(), use_cameras, landmarks.as_deref())
+                .map_err(fit_err)?;
             let written = if write {
                 let report =
                     fitted.report(template.as_deref(), scalp_path.as_deref(), use_cameras, t0.elapsed().as_secs_f64());
@@ -141,7 +149,19 @@ fn fit_head<'py>(
     result_to_py(py, &fitted, written)
 }
 
+/// The landmarks `fit_head` accepts, with their places on the bundled head (canonical frame,
+/// metres: Z up, the face toward −Y, the subject's left at +X): a dict of name to `[x, y, z]`.
+#[pyfunction]
+fn head_landmarks(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    for (name, p) in hairrecon_recon::head_fit::landmarks::BUNDLED {
+        d.set_item(name, p.to_vec())?;
+    }
+    Ok(d)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_head, m)?)?;
+    m.add_function(wrap_pyfunction!(head_landmarks, m)?)?;
     Ok(())
 }

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::DVec3;
 use hairrecon_core::camera::Camera;
 use hairrecon_core::capture::{CaptureError, CaptureSpec, FrameSpec};
 use hairrecon_core::formats::{read_mesh, read_ply_mesh_bytes, write_mesh};
@@ -12,9 +13,10 @@ use hairrecon_core::{FormatError, TriMesh};
 use thiserror::Error;
 
 use super::compare::{surface_error, SurfaceError};
+use super::landmarks::{self, LandmarkError, Landmarks, LANDMARKS_JSON};
 use super::nonrigid::fit_deformation;
 use super::surface::RawSurface;
-use super::{fit_similarity, transform_mesh, FitError, FitOptions, FitResult, HeadTemplate};
+use super::{fit_similarity_from, transform_mesh, FitError, FitOptions, FitResult, HeadTemplate};
 
 /// The head the fit registers, in the canonical frame (metres, Z up, the face toward −Y), and its
 /// scalp (the triangles the fit leaves out, since hair hides them; the roots' region after it).
@@ -22,6 +24,9 @@ use super::{fit_similarity, transform_mesh, FitError, FitOptions, FitResult, Hea
 pub struct Template {
     pub head: TriMesh,
     pub scalp: TriMesh,
+    /// Its landmarks (name, canonical point; [`landmarks::BUNDLED`] for the bundled head, none for
+    /// a user's template).
+    pub landmarks: Vec<(String, DVec3)>,
 }
 
 impl Template {
@@ -30,12 +35,12 @@ impl Template {
         const HEAD: &[u8] = include_bytes!("../../../../blend_fixtures/head.ply");
         const SCALP: &[u8] = include_bytes!("../../../../blend_fixtures/scalp.ply");
         let read = |b: &[u8]| read_ply_mesh_bytes(b).expect("the bundled head template reads");
-        Self { head: read(HEAD), scalp: read(SCALP) }
+        Self { head: read(HEAD), scalp: read(SCALP), landmarks: landmarks::bundled() }
     }
 
     /// A head and its scalp from files (.ply or .obj).
     pub fn from_files(head: &Path, scalp: &Path) -> Result<Self, FormatError> {
-        Ok(Self { head: read_mesh(head)?, scalp: read_mesh(scalp)? })
+        Ok(Self { head: read_mesh(head)?, scalp: read_mesh(scalp)?, landmarks: Vec::new() })
     }
 }
 
@@ -50,6 +55,8 @@ pub enum CaptureFitError {
     Fit { raw: PathBuf, source: FitError },
     #[error("the head template has no area outside its scalp")]
     Template,
+    #[error(transparent)]
+    Landmarks(#[from] LandmarkError),
 }
 
 /// A fitted capture.
@@ -67,12 +74,14 @@ pub struct CaptureFit {
 }
 
 /// Fits `template` to the capture `json_path` (its capture.json): its raw mesh and, with
-/// `use_cameras`, its cameras.
+/// `use_cameras`, its cameras; from the `landmarks` file when given, else from the capture's own
+/// [`LANDMARKS_JSON`] when it has one, else by the search.
 pub fn fit_capture(
     json_path: &Path,
     template: &Template,
     opts: &FitOptions,
     use_cameras: bool,
+    landmarks: Option<&Path>,
 ) -> Result<CaptureFit, CaptureFitError> {
     let text = std::fs::read_to_string(json_path)
         .map_err(|source| CaptureError::Io { path: json_path.to_path_buf(), source })?;
@@ -83,7 +92,11 @@ pub fn fit_capture(
     let dir = json_path.parent().map(Path::to_path_buf).unwrap_or_default();
     let raw_path = dir.join(&spec.raw_mesh);
     let cams = use_cameras.then_some(cameras.as_slice());
-    let (fit, head, scalp) = fit_files(&raw_path, cams, template, opts)?;
+    let landmarks = match landmarks {
+        Some(p) => Some(Landmarks::read(p)?),
+        None => capture_landmarks(&dir)?,
+    };
+    let (fit, head, scalp) = fit_files(&raw_path, cams, template, landmarks.as_ref(), opts)?;
     let scalp_error = match &spec.scalp_mesh {
         Some(given) => {
             let given = read_mesh(dir.join(given))?;
@@ -97,18 +110,30 @@ pub fn fit_capture(
     Ok(CaptureFit { fit, head, scalp, scalp_error, spec })
 }
 
-/// Fits `template` to the raw mesh in `raw_path` (with `cameras` in the same frame, when given):
-/// the fit, and the template's head and scalp mapped into the raw mesh's frame.
+/// The landmarks of the capture in `dir` ([`LANDMARKS_JSON`]), when it has them.
+pub fn capture_landmarks(dir: &Path) -> Result<Option<Landmarks>, LandmarkError> {
+    let path = dir.join(LANDMARKS_JSON);
+    path.is_file().then(|| Landmarks::read(&path)).transpose()
+}
+
+/// Fits `template` to the raw mesh in `raw_path` (with `cameras` in the same frame, when given;
+/// from `landmarks` in that frame, when given, instead of the search): the fit, and the template's
+/// head and scalp mapped into the raw mesh's frame.
 pub fn fit_files(
     raw_path: &Path,
     cameras: Option<&[Camera]>,
     template: &Template,
+    landmarks: Option<&Landmarks>,
     opts: &FitOptions,
 ) -> Result<(FitResult, TriMesh, TriMesh), CaptureFitError> {
     let raw = read_mesh(raw_path)?;
     let points = HeadTemplate::new(&template.head, Some(&template.scalp), 2000, 7).ok_or(CaptureFitError::Template)?;
-    let mut fit = fit_similarity(&points, &raw, cameras, opts)
+    let start = landmarks.map(|l| l.pose(&template.landmarks)).transpose()?;
+    let mut fit = fit_similarity_from(&points, &raw, cameras, start.as_ref().map(|s| &s.0), opts)
         .map_err(|source| CaptureFitError::Fit { raw: raw_path.into(), source })?;
+    if let Some(l) = landmarks {
+        fit.landmarks_mm = Some(l.rms_mm(&template.landmarks, &fit.to_canonical));
+    }
     // The subject's shape, fitted in the canonical frame to the raw mesh placed there.
     let (head, scalp) = match &opts.deform {
         Some(d) => {
@@ -174,6 +199,7 @@ pub fn fit_json(fit: &FitResult) -> serde_json::Value {
         "exposed_fraction": fit.score.outside,
         "cost": fit.score.cost,
         "runner_up_cost": fit.runner_up_cost,
+        "landmarks_rms_mm": fit.landmarks_mm,
         "warning": fit.close_call(),
         "shape": fit.shape.map(|r| serde_json::json!({
             "skin_rms_mm": r.skin_rms * 1e3,

@@ -28,6 +28,7 @@ pub mod capture_fit;
 pub mod coarse;
 pub mod compare;
 pub mod icp;
+pub mod landmarks;
 pub mod nonrigid;
 pub mod score;
 pub mod surface;
@@ -126,6 +127,8 @@ pub struct FitResult {
     pub runner_up_cost: Option<f64>,
     /// The shape's fit after the similarity, when one ran ([`FitOptions::deform`]).
     pub shape: Option<nonrigid::DeformReport>,
+    /// With landmarks: their RMS distance from the template's after the fit, canonical mm.
+    pub landmarks_mm: Option<f64>,
 }
 
 /// How close a runner-up's cost may come to the winner's before [`FitResult::close_call`] warns.
@@ -159,8 +162,9 @@ pub enum FitError {
     #[error(
         "the head template does not fit the raw mesh: at the best pose {on:.0}% of the template's skin lies \
          within {inlier_mm} mm of the mesh and {exposed:.0}% outside it (a fit needs at least {min_on:.0}% and at \
-         most {max_exposed:.0}%); check that the mesh shows the face and is not cut to the hair only, or give \
-         landmarks or a scalp by hand"
+         most {max_exposed:.0}%); check that the mesh shows the face and is not cut to the hair only, or place \
+         landmarks on it (landmarks.json beside capture.json, see `hairrecon fit-head --help`; in Blender, empties \
+         named after them) or give a scalp by hand"
     )]
     Poor { on: f64, exposed: f64, inlier_mm: f64, min_on: f64, max_exposed: f64 },
     #[error(
@@ -186,6 +190,19 @@ pub fn fit_similarity(
     template: &HeadTemplate,
     raw: &TriMesh,
     cameras: Option<&[Camera]>,
+    opts: &FitOptions,
+) -> Result<FitResult, FitError> {
+    fit_similarity_from(template, raw, cameras, None, opts)
+}
+
+/// [`fit_similarity`] from a known pose (template → raw; from [`landmarks`]) instead of the search:
+/// the pose is refined by ICP on all the skin, then tried at other scales and on the face as the
+/// search's finalists are. `start: None` is the search.
+pub fn fit_similarity_from(
+    template: &HeadTemplate,
+    raw: &TriMesh,
+    cameras: Option<&[Camera]>,
+    start: Option<&Similarity>,
     opts: &FitOptions,
 ) -> Result<FitResult, FitError> {
     if template.points.len() < 3 {
@@ -235,6 +252,10 @@ pub fn fit_similarity(
         centres.iter().flat_map(|&c| rotations.iter().map(move |&r| (r, c))).map(|(r, c)| pose(r, c, 1.0)).collect();
     let framing = cameras.and_then(|c| coarse::Framing::new(c, &norm));
     let ctx = Search { template, bvh: &bvh, cloud: &cloud, opts, tau: opts.inlier_mm * 1e-3, framing };
+    if let Some(start) = start {
+        // The given pose alone: normalised raw ← raw ← template.
+        return ctx.finish(vec![ctx.refine(norm.then_after(start))], &norm);
+    }
     let mut finalists = ctx.run(&starts);
     // Unless nearly all the skin is on the mesh already (a clean head), search again at a ladder
     // of smaller scales about the places where the surface is densest at a head's size: raw
@@ -256,64 +277,74 @@ pub fn fit_similarity(
         }
         finalists.extend(ctx.run(&starts));
     }
-    // The finalists distinct in rotation, cheapest first. Under hair and clothes a pose's scale
-    // is the last thing ICP gets right (a true pose held 15 % too large by a collar costs more
-    // than a wrong one at its own best scale), so each that passes and costs at most
-    // [`PROBE_WITHIN`] more than the cheapest is refined in scale and on the face before they are
-    // compared; only a pose that passes is, and only by probes that pass: a probe must not turn a
-    // rejected fit, a sphere's say, into an accepted one.
-    finalists.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
-    let mut distinct: Vec<Candidate> = Vec::new();
-    for c in finalists {
-        if distinct.iter().all(|d| d.t.rotation_angle_to(&c.t) > PICK_APART_DEGREES) {
-            distinct.push(c);
-        }
-    }
-    let cheapest = distinct[0].score.cost;
-    let mut done: Vec<Candidate> = distinct
-        .into_iter()
-        .map(|c| {
-            if acceptable(&c.score, opts)
-                && c.score.on_surface < opts.clean_fraction
-                && c.score.cost <= cheapest + PROBE_WITHIN
-            {
-                ctx.refine_on_face(ctx.probe_scales(c, opts), opts)
-            } else {
-                c
+    ctx.finish(finalists, &norm)
+}
+
+impl Search<'_> {
+    /// The finalists' comparison and the checks: the fit, or why it failed. `norm` takes the raw
+    /// mesh to the normalised frame the search ran in.
+    fn finish(&self, mut finalists: Vec<Candidate>, norm: &Similarity) -> Result<FitResult, FitError> {
+        let (ctx, opts) = (self, self.opts);
+        // The finalists distinct in rotation, cheapest first. Under hair and clothes a pose's scale
+        // is the last thing ICP gets right (a true pose held 15 % too large by a collar costs more
+        // than a wrong one at its own best scale), so each that passes and costs at most
+        // [`PROBE_WITHIN`] more than the cheapest is refined in scale and on the face before they are
+        // compared; only a pose that passes is, and only by probes that pass: a probe must not turn a
+        // rejected fit, a sphere's say, into an accepted one.
+        finalists.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
+        let mut distinct: Vec<Candidate> = Vec::new();
+        for c in finalists {
+            if distinct.iter().all(|d| d.t.rotation_angle_to(&c.t) > PICK_APART_DEGREES) {
+                distinct.push(c);
             }
-        })
-        .collect();
-    done.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
-    let best = done[0];
-    let runner_up = done[1..].iter().find(|c| c.t.rotation_angle_to(&best.t) > PICK_APART_DEGREES).copied();
-    if let Some(f) = ctx.framing_of(&best.t) {
-        if !(opts.framing.0..=opts.framing.1).contains(&f) {
-            return Err(FitError::Framing {
-                percent: 100.0 * f,
-                low: 100.0 * opts.framing.0,
-                high: 100.0 * opts.framing.1,
+        }
+        let cheapest = distinct[0].score.cost;
+        let mut done: Vec<Candidate> = distinct
+            .into_iter()
+            .map(|c| {
+                if acceptable(&c.score, opts)
+                    && c.score.on_surface < opts.clean_fraction
+                    && c.score.cost <= cheapest + PROBE_WITHIN
+                {
+                    ctx.refine_on_face(ctx.probe_scales(c, opts), opts)
+                } else {
+                    c
+                }
+            })
+            .collect();
+        done.sort_by(|a, b| a.score.cost.total_cmp(&b.score.cost));
+        let best = done[0];
+        let runner_up = done[1..].iter().find(|c| c.t.rotation_angle_to(&best.t) > PICK_APART_DEGREES).copied();
+        if let Some(f) = ctx.framing_of(&best.t) {
+            if !(opts.framing.0..=opts.framing.1).contains(&f) {
+                return Err(FitError::Framing {
+                    percent: 100.0 * f,
+                    low: 100.0 * opts.framing.0,
+                    high: 100.0 * opts.framing.1,
+                });
+            }
+        }
+        let score = best.score;
+        if !acceptable(&score, opts) {
+            return Err(FitError::Poor {
+                on: 100.0 * score.on_surface,
+                exposed: 100.0 * score.outside,
+                inlier_mm: opts.inlier_mm,
+                min_on: 100.0 * opts.min_inlier_fraction,
+                max_exposed: 100.0 * opts.max_exposed_fraction,
             });
         }
+        // canonical → normalised raw → raw; inverted.
+        let to_raw = norm.inverse().then_after(&best.t);
+        Ok(FitResult {
+            to_canonical: to_raw.inverse(),
+            residual_mm: score.rms_on_surface * 1e3,
+            score,
+            runner_up_cost: runner_up.map(|c| c.score.cost),
+            shape: None,
+            landmarks_mm: None,
+        })
     }
-    let score = best.score;
-    if !acceptable(&score, opts) {
-        return Err(FitError::Poor {
-            on: 100.0 * score.on_surface,
-            exposed: 100.0 * score.outside,
-            inlier_mm: opts.inlier_mm,
-            min_on: 100.0 * opts.min_inlier_fraction,
-            max_exposed: 100.0 * opts.max_exposed_fraction,
-        });
-    }
-    // canonical → normalised raw → raw; inverted.
-    let to_raw = norm.inverse().then_after(&best.t);
-    Ok(FitResult {
-        to_canonical: to_raw.inverse(),
-        residual_mm: score.rms_on_surface * 1e3,
-        score,
-        runner_up_cost: runner_up.map(|c| c.score.cost),
-        shape: None,
-    })
 }
 
 /// The score ([`score_pose`]) of a given frame: `to_canonical` takes the raw mesh's coordinates to
@@ -524,6 +555,20 @@ impl Search<'_> {
         }
     }
 
+    /// ICP on all the template's points from `t`, scored.
+    fn refine(&self, t: Similarity) -> Candidate {
+        let o = IcpOptions {
+            metric: IcpMetric::Plane,
+            iterations: self.opts.refine_iterations,
+            keep: self.opts.keep,
+            tolerance: 1e-7,
+            parallel: true,
+            cover: self.cover(),
+        };
+        let r = trimmed_icp(&self.template.points, Some(&self.template.normals), self.bvh, t, self.cap(&t), &o);
+        Candidate { t: r.transform, score: self.score(&r.transform, usize::MAX, true) }
+    }
+
     /// The pose `t` turned half a turn about the template's up axis (+Z) through its centre.
     fn turned_about_up(&self, t: &Similarity) -> Similarity {
         let c = self.template.stats.centre;
@@ -639,6 +684,7 @@ mod tests {
             score,
             runner_up_cost: r,
             shape: None,
+            landmarks_mm: None,
         };
         let w = fit(Some(0.52)).close_call().expect("a warning");
         assert!(w.contains("0.520") && w.contains("0.500") && w.contains("fitted_head.ply"), "{w}");

@@ -15,7 +15,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{ReconstructConfig, Stage};
 use crate::error::ReconError;
-use crate::head_fit::capture_fit::{fit_files, fit_json, Template, FITTED_HEAD, FITTED_SCALP, HEAD_FIT_JSON};
+use crate::head_fit::capture_fit::{
+    capture_landmarks, fit_files, fit_json, Template, FITTED_HEAD, FITTED_SCALP, HEAD_FIT_JSON,
+};
 use crate::head_fit::FitOptions;
 use crate::stages::{need, write_json, Context};
 
@@ -73,13 +75,16 @@ pub fn run(
     };
     let cameras: Vec<_> = cap.views.iter().map(|v| v.camera).collect();
     let cams = cfg.head_fit.use_cameras.then_some(cameras.as_slice());
-    let (fit, head, scalp) = fit_files(&cap.raw_mesh, cams, &Template::bundled(), &opts).map_err(|e| {
-        ReconError::HeadFit(format!(
-            "{e}. Give the capture a scalp and head (scalp_mesh, head_mesh and, for an imported capture, \
+    // The user's landmarks, when the capture has them (landmarks.json beside capture.json).
+    let landmarks = capture_landmarks(&cap.dir).map_err(|e| ReconError::HeadFit(e.to_string()))?;
+    let (fit, head, scalp) =
+        fit_files(&cap.raw_mesh, cams, &Template::bundled(), landmarks.as_ref(), &opts).map_err(|e| {
+            ReconError::HeadFit(format!(
+                "{e}. Give the capture a scalp and head (scalp_mesh, head_mesh and, for an imported capture, \
              to_canonical in capture.json; `hairrecon fit-head {} --write` writes them where a fit succeeds)",
-            cap.dir.display()
-        ))
-    })?;
+                cap.dir.display()
+            ))
+        })?;
     ctx.progress.check()?;
     let unplaced = !cap.is_canonical() && cap.to_canonical.is_none();
     let out = HeadOut {
