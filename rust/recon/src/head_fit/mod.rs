@@ -1,6 +1,7 @@
 //! Head fitting, first part: the similarity (scale, rotation, translation) that takes a raw mesh
 //! in a photogrammetry tool's frame to the canonical frame (metres, Z up, the face toward −Y), by
-//! registering the bundled head template to it, without landmarks or a learned model.
+//! registering the bundled head template to it, without a learned model, and without landmarks
+//! unless the user gives some ([`landmarks`]: then their pose replaces steps 2–4).
 //!
 //! Method:
 //! 1. Normalise the raw mesh by its surface centre and radius of gyration (conditioning: any
