@@ -209,7 +209,12 @@ class HAIRRECON_OT_fit_head(bpy.types.Operator):
             traceback.print_exc()
             self.report({"ERROR"}, f"Fit Head failed: {e}")
             return {"CANCELLED"}
-        self.report({"INFO"}, msg)
+        warning = (run.result or {}).get("warning")
+        if warning:
+            # a close call: the fit may have taken the back of the head for its face
+            self.report({"WARNING"}, f"{msg}. Check the fit: {warning}")
+        else:
+            self.report({"INFO"}, msg)
         return {"FINISHED"}
 
     def execute(self, context):

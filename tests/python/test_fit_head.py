@@ -33,6 +33,9 @@ def test_fit_head_recovers_the_frame_and_the_scalp(tmp_path):
     for k in ("residual_mm", "on_mesh_fraction", "covered_fraction", "exposed_fraction", "cost"):
         assert isinstance(fit[k], float), k
     assert fit["on_mesh_fraction"] > 0.9 and fit["scalp_error"] is None and fit["written"] == []
+    # a clean head wins clearly: no warning, and any rival pose costs well more
+    assert fit["warning"] is None and fit["landmarks_rms_mm"] is None, fit["warning"]
+    assert fit["runner_up_cost"] is None or fit["runner_up_cost"] > fit["cost"] + 0.03, fit["runner_up_cost"]
     # the fitted meshes, in the capture's frame, as read_mesh returns meshes
     for key in ("head", "scalp"):
         v, t = fit[key]

@@ -146,7 +146,8 @@ impl FitResult {
             format!(
                 "the head fit barely won: a pose turned more than 30° from it costs {r:.3} against its {:.3}; \
                  check that the face of the fitted head (fitted_head.ply) lies on the raw mesh's face (open \
-                 both in Blender), or give the head and scalp by hand",
+                 both in Blender); if it does not, place landmarks (landmarks.json beside capture.json, or in \
+                 Blender empties named after them) or give the head and scalp by hand",
                 self.score.cost
             )
         })
@@ -689,6 +690,7 @@ mod tests {
         };
         let w = fit(Some(0.52)).close_call().expect("a warning");
         assert!(w.contains("0.520") && w.contains("0.500") && w.contains("fitted_head.ply"), "{w}");
+        assert!(w.contains("place landmarks (landmarks.json"), "{w}");
         assert!(fit(Some(0.56)).close_call().is_none());
         assert!(fit(None).close_call().is_none());
     }
