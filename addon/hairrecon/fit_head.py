@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Optional
 
 import bpy
+import numpy as np
 
 from . import scene_build, scene_read
 from .core.camera import CameraInputError, blender_camera, opencv_from_blender
@@ -271,7 +272,69 @@ class HAIRRECON_OT_fit_head(bpy.types.Operator):
             self._end_modal(context)
 
 
-CLASSES = (HAIRRECON_OT_fit_head,)
+LANDMARKS = "Landmarks"  # the collection Add Landmarks puts its empties in
+
+
+def landmark_places(context, names: dict) -> tuple[dict, str]:
+    """Where Add Landmarks puts each landmark (name -> world point) and what from: where the panel's
+    fitted head (or scalp) has it, or, with no fit, the bundled head's layout about the 3D cursor,
+    Z up and the face toward -Y, at a size guessed from the raw mesh (a head and shoulders scan about
+    0.7 m across)."""
+    s = context.scene.hairrecon
+    fitted = next((o for o, k in ((s.head_object, "head"), (s.scalp_object, "scalp")) if _is_fitted(o, k)), None)
+    if fitted is not None and fitted.get(FRAME):
+        f = json.loads(fitted[FRAME])
+        r, t, k = np.array(f["rotation"]), np.array(f["translation"]), float(f["scale"])
+        # canonical = k R x + t, so x = R^T (canonical - t) / k
+        return {n: (r.T @ (np.array(p) - t) / k).tolist() for n, p in names.items()}, f"where {fitted.name!r} has them"
+    per_metre = 1.0
+    raw = s.raw_mesh
+    if raw is not None and raw.type == "MESH":
+        per_metre = max(raw.dimensions) / 0.7 if max(raw.dimensions) > 0 else 1.0
+    c = np.array(context.scene.cursor.location)
+    return {n: (c + per_metre * np.array(p)).tolist() for n, p in names.items()}, "about the 3D cursor (no fit yet)"
+
+
+class HAIRRECON_OT_add_landmarks(bpy.types.Operator):
+    """Add an empty for each landmark the head fit accepts (nose tip, chin, outer eye corners, ear openings), where the fitted head has it; move each onto its place on the raw mesh, then Fit Head again"""
+
+    bl_idname = "hairrecon.add_landmarks"
+    bl_label = "Add Landmarks"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        try:
+            names = library().head_landmarks()
+        except (UserError, AttributeError) as e:
+            self.report({"ERROR"}, f"cannot add landmarks: {e}")
+            return {"CANCELLED"}
+        try:
+            have = scene_read.landmarks(context.scene, names)
+        except CaptureInputError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        places, where = landmark_places(context, names)
+        missing = [n for n in names if n not in have]
+        if not missing:
+            self.report({"INFO"}, "every landmark has its empty already: move them onto the raw mesh, then Fit Head")
+            return {"CANCELLED"}
+        coll = bpy.data.collections.get(LANDMARKS)
+        if coll is None:
+            coll = bpy.data.collections.new(LANDMARKS)
+            context.scene.collection.children.link(coll)
+        size = 0.005 * (np.linalg.norm(np.subtract(places["ear_left"], places["ear_right"])) / 0.155)
+        for n in missing:
+            e = bpy.data.objects.new(n, None)
+            e.empty_display_type = "SPHERE"
+            e.empty_display_size = max(size, 1e-6)
+            e.location = places[n]
+            coll.objects.link(e)
+        self.report({"INFO"}, f"added {len(missing)} landmark empties {where}: move each onto its place on the raw "
+                              "mesh (left and right are the subject's own), then Fit Head")
+        return {"FINISHED"}
+
+
+CLASSES = (HAIRRECON_OT_fit_head, HAIRRECON_OT_add_landmarks)
 
 
 def register():

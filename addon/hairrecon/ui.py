@@ -70,6 +70,7 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
             row = layout.row(align=True)
             row.operator("hairrecon.fit_head", icon="USER")
             row.operator("hairrecon.reconstruct", icon="CURVES")
+            layout.operator("hairrecon.add_landmarks", icon="EMPTY_AXIS")
         ob = context.active_object
         if ob is not None and ob.type == "CURVES":
             layout.operator("hairrecon.test_physics", icon="PHYSICS")

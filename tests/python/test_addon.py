@@ -432,7 +432,8 @@ def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     fit_fixture.py): the Fitted Scalp object lies on the true scalp, in the scene's frame, and becomes the
     panel's scalp, which Reconstruct Hair's capture takes; on a sphere's capture it reports one error and changes
     nothing. Landmark empties: left and right swapped, or two for one landmark, are one error each that changes
-    nothing; placed right, the fit from them lies on the true scalp."""
+    nothing; placed right, the fit from them lies on the true scalp; Add Landmarks puts one for each where
+    the fitted head has it."""
     from fit_fixture import SCALE, to_capture, write_capture
 
     truth = write_capture(hairrecon, tmp_path / "good", photos=True)["scalp"]
@@ -469,6 +470,11 @@ def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     assert out["twice_unchanged"]
     assert out["landmarks_result"] == ["FINISHED"] and out["landmarks_error"] is None, out["landmarks_error"]
     assert out["landmarks_fitted"] == 1 and out["landmarks_scalp_err_mm"] < 1.0, out
+    add = out["add_landmarks"]
+    assert add["result"] == ["FINISHED"] and sorted(add["added"]) == sorted(marks), add
+    off_mm = {n: float(np.linalg.norm(np.subtract(p, marks[n]))) / SCALE * 1e3 for n, p in add["added"].items()}
+    assert max(off_mm.values()) < 1.0, off_mm
+    assert out["add_landmarks_again"] == [["CANCELLED"], None] and out["landmarks_after_again"] == 6, out
 
 
 def test_import_colmap_builds_the_scene_and_refuses_bad_input(extension_zip, tmp_path):

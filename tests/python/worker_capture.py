@@ -144,6 +144,13 @@ def task_fit_head(p):
         out["landmarks_scalp_err_mm"] = float((np.linalg.norm(world - truth, axis=1) / float(p["scale"]) * 1e3).max())
     out["landmarks_fitted"] = len(fitted)
     remove(made)
+    # Add Landmarks: an empty for each, where the panel's fitted head has it; a second click adds none
+    res, err = run_op(bpy.ops.hairrecon.add_landmarks)
+    coll = bpy.data.collections.get("Landmarks")
+    added = {o.name: list(o.matrix_world.translation) for o in coll.objects} if coll else {}
+    out["add_landmarks"] = {"result": res, "error": err, "added": added}
+    out["add_landmarks_again"] = run_op(bpy.ops.hairrecon.add_landmarks)
+    out["landmarks_after_again"] = len(coll.objects) if coll else 0
     return out
 
 
