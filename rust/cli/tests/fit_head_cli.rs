@@ -139,3 +139,46 @@ fn a_capture_with_a_scalp_keeps_it_and_is_scored_against_it() {
     assert_ne!(before, std::fs::read(dir.join("capture.json")).unwrap());
     assert!(!dir.join("fitted_scalp.ply").exists());
 }
+
+/// The capture's landmarks (landmarks.json beside capture.json, in its frame) start the fit of
+/// `reconstruct`'s head stage, whose head_fit.json says how far they lie from the template's; a
+/// file with the subject's sides swapped stops `fit-head --landmarks` with one error naming it.
+#[test]
+fn landmarks_beside_the_capture_start_reconstructs_head_fit() {
+    use hairrecon_recon::head_fit::landmarks::bundled;
+    let dir = tmp("landmarks");
+    capture(&dir, false);
+    let (s, r, t) = frame();
+    let place = |p: DVec3| (s * (r * p) + t).to_array();
+    let placed: serde_json::Map<String, serde_json::Value> =
+        bundled().into_iter().map(|(n, p)| (n, serde_json::json!(place(p)))).collect();
+    std::fs::write(dir.join("landmarks.json"), serde_json::Value::Object(placed.clone()).to_string()).unwrap();
+    // reconstruct reads the photos as the capture loads (the fit itself reads none)
+    for i in 0..4 {
+        let grey = hairrecon_core::image_io::RgbImage32::new(400, 600, vec![0.5f32; 3 * 400 * 600]).unwrap();
+        hairrecon_core::image_io::write_png8_rgb(dir.join(format!("v{i}.png")), &grey).unwrap();
+    }
+    let out = dir.join("out");
+    let o = Command::new(bin())
+        .args(["reconstruct", dir.to_str().unwrap(), "--out", out.to_str().unwrap(), "--stop-after", "head"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("head_fit.json")).unwrap()).unwrap();
+    let lm = report["fit"]["landmarks_rms_mm"].as_f64().unwrap_or_else(|| panic!("{report}"));
+    assert!(lm < 1.0, "{lm}");
+    assert!((report["fit"]["to_canonical"]["scale"].as_f64().unwrap() * s - 1.0).abs() < 0.01, "{report}");
+
+    let mut swapped = placed.clone();
+    swapped.insert("ear_left".into(), placed["ear_right"].clone());
+    swapped.insert("ear_right".into(), placed["ear_left"].clone());
+    swapped.insert("eye_outer_left".into(), placed["eye_outer_right"].clone());
+    swapped.insert("eye_outer_right".into(), placed["eye_outer_left"].clone());
+    let bad = dir.join("swapped.json");
+    std::fs::write(&bad, serde_json::Value::Object(swapped).to_string()).unwrap();
+    let o = Command::new(bin()).arg("fit-head").arg(&*dir).arg("--landmarks").arg(&bad).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && o.stdout.is_empty(), "{err}");
+    assert!(err.contains("swapped.json") && err.contains("subject's own"), "{err}");
+}
