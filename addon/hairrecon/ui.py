@@ -16,6 +16,23 @@ def _scalp_used(s) -> str:
     return f"Hair grows on {s.head_object.name}'s group {s.scalp_vertex_group}"
 
 
+def _landmarks_line(scene) -> str:
+    """How many landmark empties Fit Head will start from, for the panel ("" when none or the library
+    is missing)."""
+    try:
+        from .scene_read import landmarks
+        from .session import library
+
+        found = landmarks(scene, library().head_landmarks())
+    except Exception:  # noqa: BLE001 - a panel line never fails the panel; Fit Head says what is wrong
+        return ""
+    if not found:
+        return ""
+    if len(found) < 3:
+        return f"{len(found)} landmark empties: Fit Head needs three or more to use them"
+    return f"Fit Head starts from {len(found)} landmark empties"
+
+
 class HAIRRECON_PT_reconstruct(bpy.types.Panel):
     bl_label = "Hair Reconstruction"
     bl_idname = "HAIRRECON_PT_reconstruct"
@@ -71,6 +88,9 @@ class HAIRRECON_PT_reconstruct(bpy.types.Panel):
             row.operator("hairrecon.fit_head", icon="USER")
             row.operator("hairrecon.reconstruct", icon="CURVES")
             layout.operator("hairrecon.add_landmarks", icon="EMPTY_AXIS")
+            line = _landmarks_line(context.scene)
+            if line:
+                layout.label(text=line, icon="INFO")
         ob = context.active_object
         if ob is not None and ob.type == "CURVES":
             layout.operator("hairrecon.test_physics", icon="PHYSICS")

@@ -475,6 +475,7 @@ def test_fit_head_adds_the_fitted_head_and_scalp(extension_zip, tmp_path):
     off_mm = {n: float(np.linalg.norm(np.subtract(p, marks[n]))) / SCALE * 1e3 for n, p in add["added"].items()}
     assert max(off_mm.values()) < 1.0, off_mm
     assert out["add_landmarks_again"] == [["CANCELLED"], None] and out["landmarks_after_again"] == 6, out
+    assert out["landmarks_line_before"] == "" and out["landmarks_line_after"] == "Fit Head starts from 6 landmark empties"
 
 
 def test_import_colmap_builds_the_scene_and_refuses_bad_input(extension_zip, tmp_path):

@@ -144,8 +144,14 @@ def task_fit_head(p):
         out["landmarks_scalp_err_mm"] = float((np.linalg.norm(world - truth, axis=1) / float(p["scale"]) * 1e3).max())
     out["landmarks_fitted"] = len(fitted)
     remove(made)
-    # Add Landmarks: an empty for each, where the panel's fitted head has it; a second click adds none
+    # Add Landmarks: an empty for each, where the panel's fitted head has it; a second click adds none;
+    # the panel's line counts them
+    from importlib import import_module
+
+    line = import_module(extension_package().__name__ + ".ui")._landmarks_line
+    out["landmarks_line_before"] = line(bpy.context.scene)
     res, err = run_op(bpy.ops.hairrecon.add_landmarks)
+    out["landmarks_line_after"] = line(bpy.context.scene)
     coll = bpy.data.collections.get("Landmarks")
     added = {o.name: list(o.matrix_world.translation) for o in coll.objects} if coll else {}
     out["add_landmarks"] = {"result": res, "error": err, "added": added}
