@@ -136,6 +136,10 @@ class FitRun:
         from_marks = ""
         if fit.get("landmarks_rms_mm") is not None:
             from_marks = f", from {self.landmarks} landmarks {fit['landmarks_rms_mm']:.1f} mm from the template's"
+            each = fit.get("landmarks_mm") or {}
+            if each:
+                far = max(each, key=each.get)
+                from_marks += f" (farthest: {far}, {each[far]:.1f} mm)"
         msg = (
             f"Fitted the head in {seconds:.1f} s (residual {fit['residual_mm']:.2f} mm{from_marks}, "
             f"{100 * fit['on_mesh_fraction']:.0f}% of the skin on the raw mesh, {1 / scale:.4g} scene units per metre): "

@@ -34,7 +34,7 @@ def test_fit_head_recovers_the_frame_and_the_scalp(tmp_path):
         assert isinstance(fit[k], float), k
     assert fit["on_mesh_fraction"] > 0.9 and fit["scalp_error"] is None and fit["written"] == []
     # a clean head wins clearly: no warning, and any rival pose costs well more
-    assert fit["warning"] is None and fit["landmarks_rms_mm"] is None, fit["warning"]
+    assert fit["warning"] is None and fit["landmarks_rms_mm"] is None and fit["landmarks_mm"] is None, fit["warning"]
     assert fit["runner_up_cost"] is None or fit["runner_up_cost"] > fit["cost"] + 0.03, fit["runner_up_cost"]
     # the fitted meshes, in the capture's frame, as read_mesh returns meshes
     for key in ("head", "scalp"):
@@ -97,6 +97,7 @@ def test_fit_head_from_landmarks(tmp_path):
     assert angle < 1.0 and abs(frame["scale"] * SCALE - 1) < 0.01, (angle, frame["scale"])
     # the landmarks are the template's own, so the fit puts them back within a millimetre
     assert fit["landmarks_rms_mm"] is not None and fit["landmarks_rms_mm"] < 1.0, fit["landmarks_rms_mm"]
+    assert sorted(fit["landmarks_mm"]) == sorted(names) and max(fit["landmarks_mm"].values()) < 1.5, fit["landmarks_mm"]
     assert hairrecon.fit_head(str(cap / "capture.json"), use_cameras=False)["landmarks_rms_mm"] < 1.0
 
     # the viewer's left taken for the subject's: one error naming the file and the convention

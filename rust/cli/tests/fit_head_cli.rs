@@ -168,6 +168,9 @@ fn landmarks_beside_the_capture_start_reconstructs_head_fit() {
         serde_json::from_str(&std::fs::read_to_string(out.join("head_fit.json")).unwrap()).unwrap();
     let lm = report["fit"]["landmarks_rms_mm"].as_f64().unwrap_or_else(|| panic!("{report}"));
     assert!(lm < 1.0, "{lm}");
+    let each = report["fit"]["landmarks_mm"].as_object().unwrap_or_else(|| panic!("{report}"));
+    assert_eq!(each.len(), 6, "{report}");
+    assert!(each.values().all(|d| d.as_f64().is_some_and(|d| d < 1.5)), "{report}");
     assert!((report["fit"]["to_canonical"]["scale"].as_f64().unwrap() * s - 1.0).abs() < 0.01, "{report}");
 
     let mut swapped = placed.clone();

@@ -79,6 +79,18 @@ fn result_to_py<'py>(py: Python<'py>, f: &CaptureFit, written: Option<Vec<PathBu
     d.set_item("exposed_fraction", f.fit.score.outside)?;
     d.set_item("cost", f.fit.score.cost)?;
     d.set_item("landmarks_rms_mm", f.fit.landmarks_mm)?;
+    match f.fit.landmarks_mm {
+        Some(_) => {
+            let each = PyDict::new(py);
+            for (name, mm) in hairrecon_recon::head_fit::landmarks::NAMES.iter().zip(f.fit.each_landmark_mm) {
+                if let Some(mm) = mm {
+                    each.set_item(name, mm)?;
+                }
+            }
+            d.set_item("landmarks_mm", each)?;
+        }
+        None => d.set_item("landmarks_mm", py.None())?,
+    }
     d.set_item("runner_up_cost", f.fit.runner_up_cost)?;
     d.set_item("warning", f.fit.close_call())?;
     match f.scalp_error {
@@ -111,7 +123,8 @@ fn result_to_py<'py>(py: Python<'py>, f: &CaptureFit, written: Option<Vec<PathBu
 /// `covered_fraction`, `exposed_fraction`, `cost`, `runner_up_cost` (the best cost of a pose turned
 /// more than 30° from the winner, or None), `warning` (when that pose came close: what to check,
 /// else None), `landmarks_rms_mm` (with landmarks: their RMS
-/// distance from the template's after the fit, canonical mm; else None), `scalp_error` (the fitted scalp's distance to
+/// distance from the template's after the fit, canonical mm; else None), `landmarks_mm` (each given
+/// landmark's distance, a dict of name to mm; else None), `scalp_error` (the fitted scalp's distance to
 /// the capture's own scalp, `{"mean_mm", "p95_mm", "max_mm"}`, or None when it has none), `head`
 /// and `scalp` (the fitted template as `(vertices float32 (N, 3), triangles uint32 (M, 3))` in the
 /// capture's frame) and `written`. With `write=True`, the fitted head and scalp become the

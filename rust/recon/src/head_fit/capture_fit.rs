@@ -133,6 +133,7 @@ pub fn fit_files(
         .map_err(|source| CaptureFitError::Fit { raw: raw_path.into(), source })?;
     if let Some(l) = landmarks {
         fit.landmarks_mm = Some(l.rms_mm(&template.landmarks, &fit.to_canonical));
+        fit.each_landmark_mm = l.each_mm(&template.landmarks, &fit.to_canonical);
     }
     // The subject's shape, fitted in the canonical frame to the raw mesh placed there.
     let (head, scalp) = match &opts.deform {
@@ -200,6 +201,9 @@ pub fn fit_json(fit: &FitResult) -> serde_json::Value {
         "cost": fit.score.cost,
         "runner_up_cost": fit.runner_up_cost,
         "landmarks_rms_mm": fit.landmarks_mm,
+        "landmarks_mm": fit.landmarks_mm.map(|_| landmarks::NAMES.iter().zip(fit.each_landmark_mm)
+            .filter_map(|(n, d)| Some((n.to_string(), serde_json::json!(d?))))
+            .collect::<serde_json::Map<_, _>>()),
         "warning": fit.close_call(),
         "shape": fit.shape.map(|r| serde_json::json!({
             "skin_rms_mm": r.skin_rms * 1e3,

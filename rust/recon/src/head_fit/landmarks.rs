@@ -145,14 +145,18 @@ impl Landmarks {
     /// The RMS distance (canonical mm) of these landmarks, mapped by `to_canonical`, from
     /// `template`'s of the same names (how well a fit agrees with them).
     pub fn rms_mm(&self, template: &[(String, DVec3)], to_canonical: &Similarity) -> f64 {
-        let d: Vec<f64> = self
-            .points
-            .iter()
-            .filter_map(|(n, q)| {
-                template.iter().find(|(m, _)| m == n).map(|(_, p)| (to_canonical.apply(*q) - *p).length())
-            })
-            .collect();
-        (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt() * 1e3
+        let d: Vec<f64> = self.each_mm(template, to_canonical).into_iter().flatten().collect();
+        (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt()
+    }
+
+    /// Each landmark's distance (canonical mm), mapped by `to_canonical`, from `template`'s of the
+    /// same name, in [`NAMES`]' order (`None` where either has none).
+    pub fn each_mm(&self, template: &[(String, DVec3)], to_canonical: &Similarity) -> [Option<f64>; NAMES.len()] {
+        NAMES.map(|name| {
+            let q = self.points.iter().find(|(n, _)| n == name)?.1;
+            let p = template.iter().find(|(m, _)| m == name)?.1;
+            Some((to_canonical.apply(q) - p).length() * 1e3)
+        })
     }
 }
 
@@ -201,6 +205,15 @@ mod tests {
         assert!(t.rotation_angle_to(&to_capture) < 3.0, "{}", t.rotation_angle_to(&to_capture));
         assert!((t.scale / to_capture.scale - 1.0).abs() < 0.05, "{}", t.scale);
         assert!(rms > 0.5 && rms < 3.0, "{rms}");
+        // Against the true frame: the chin is the 3 mm it was moved, the others on their places, the
+        // three not given have no figure, and the RMS is theirs.
+        let each = lm.each_mm(&bundled(), &to_capture.inverse());
+        assert!(
+            (each[1].unwrap() - 3.0).abs() < 1e-6 && each[0].unwrap() < 1e-6 && each[2].unwrap() < 1e-6,
+            "{each:?}"
+        );
+        assert_eq!(each[3..], [None, None, None]);
+        assert!((lm.rms_mm(&bundled(), &to_capture.inverse()) - 3.0 / 3f64.sqrt()).abs() < 1e-6);
     }
 
     #[test]

@@ -130,6 +130,9 @@ pub struct FitResult {
     pub shape: Option<nonrigid::DeformReport>,
     /// With landmarks: their RMS distance from the template's after the fit, canonical mm.
     pub landmarks_mm: Option<f64>,
+    /// With landmarks: each one's distance from the template's after the fit, canonical mm, in
+    /// [`landmarks::NAMES`]' order (`None` for those not given).
+    pub each_landmark_mm: [Option<f64>; landmarks::NAMES.len()],
 }
 
 /// How close a runner-up's cost may come to the winner's before [`FitResult::close_call`] warns.
@@ -345,6 +348,7 @@ impl Search<'_> {
             runner_up_cost: runner_up.map(|c| c.score.cost),
             shape: None,
             landmarks_mm: None,
+            each_landmark_mm: [None; landmarks::NAMES.len()],
         })
     }
 }
@@ -687,6 +691,7 @@ mod tests {
             runner_up_cost: r,
             shape: None,
             landmarks_mm: None,
+            each_landmark_mm: [None; landmarks::NAMES.len()],
         };
         let w = fit(Some(0.52)).close_call().expect("a warning");
         assert!(w.contains("0.520") && w.contains("0.500") && w.contains("fitted_head.ply"), "{w}");
