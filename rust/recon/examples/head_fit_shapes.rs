@@ -75,7 +75,7 @@ fn main() {
     let head = read_mesh(dir.join("head.ply")).expect("head.ply");
     let scalp = read_mesh(dir.join("scalp.ply")).expect("scalp.ply");
     let template = HeadTemplate::new(&head, Some(&scalp), 2000, 7).expect("template");
-    println!("| head | axis scales | fit scale | rotation ° | similarity: scalp mean · p95 mm | deformed: scalp mean · p95 mm | scalp on the mesh | deform s |");
+    println!("| head | axis scales | fit scale | rotation ° | similarity: scalp mean · p95 mm | deformed: scalp mean · p95 mm | scalp · its border on the mesh | deform s |");
     println!("|---:|---|---:|---:|---:|---:|---:|---:|");
     let (mut sum_mean, mut sum_p95, mut def_mean, mut def_p95, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for seed in first..first + heads {
@@ -125,7 +125,7 @@ fn main() {
         // The fitted frame against the true one (raw → canonical, the inverse of `frame`).
         let angle = fit.to_canonical.rotation_angle_to(&frame.inverse());
         println!(
-            "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {angle:.1} | {:.2} · {:.2} | {:.2} · {:.2} | {:.0} %{} | {secs:.1} |",
+            "| {seed} | {:.3} {:.3} {:.3} | {:.4} | {angle:.1} | {:.2} · {:.2} | {:.2} · {:.2} | {:.0} · {:.0} %{} | {secs:.1} |",
             deform.scale.x,
             deform.scale.y,
             deform.scale.z,
@@ -135,6 +135,7 @@ fn main() {
             d.mean * 1e3,
             d.p95 * 1e3,
             100.0 * rep.scalp_on_surface,
+            100.0 * rep.border_on_surface,
             if rep.bald { ", bald" } else { "" }
         );
     }

@@ -210,6 +210,7 @@ pub fn fit_json(fit: &FitResult) -> serde_json::Value {
             "skin_matched_fraction": r.skin_matched,
             "scalp_matched_fraction": r.scalp_matched,
             "scalp_on_surface_fraction": r.scalp_on_surface,
+            "scalp_border_on_surface_fraction": r.border_on_surface,
             "bald": r.bald,
             "max_displacement_mm": r.max_displacement * 1e3,
         })),

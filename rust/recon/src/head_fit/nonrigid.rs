@@ -21,10 +21,14 @@
 //!   the raw surface (the template pokes through the hair) is pulled onto it; one inside follows
 //!   the field. Pulling covered points out onto the hair would inflate the head step by step, each
 //!   step bringing more of the scalp near the hair's surface. Only when, after that fit, most of
-//!   the scalp ([`DeformOptions::bald_fraction`]) lies on the raw surface (a bald or shaved head),
-//!   the levels run again with the scalp fitted as skin is;
+//!   the scalp ([`DeformOptions::bald_fraction`]) or of its border with the skin
+//!   ([`DeformOptions::bald_border_fraction`]) lies on the raw surface (a bald or shaved head),
+//!   the levels run again with the scalp fitted as skin is. The border tells a bald crown of other
+//!   proportions from hair: on a bald head the skin runs on over the scalp's edge, under hair the
+//!   raw surface steps out there by the hair's thickness;
 //! - only the nearest [`DeformOptions::keep`] share of the matches counts; the farthest are
-//!   trimmed (holes, a backdrop).
+//!   trimmed (holes, a backdrop). A bald head's second pass keeps them all
+//!   ([`DeformOptions::bald_keep`]): there the farthest matches are the bumps it has to reach.
 
 use glam::{DMat3, DVec3};
 use hairrecon_core::TriMesh;
@@ -46,7 +50,8 @@ pub struct DeformOptions {
     /// Scalp sample points.
     pub scalp_samples: usize,
     /// The stiffness (weight of the bumps' roughness against the mean squared distance, m²) of
-    /// each level, from stiff to supple.
+    /// each level, from stiff to supple. The first levels leave the bumps almost no freedom, so that
+    /// the affine part takes the head's proportions before the bumps bend it locally.
     pub stiffness: Vec<f64>,
     /// Steps per stiffness level.
     pub steps_per_level: usize,
@@ -62,10 +67,18 @@ pub struct DeformOptions {
     /// With this share of the scalp on the raw surface after the first fit, the head is taken as
     /// bald (its scalp seen) and fitted again with the scalp as skin.
     pub bald_fraction: f64,
+    /// The scalp's border: its samples within this of a skin sample.
+    pub border_width: f64,
+    /// With this share of the scalp's border on the raw surface after the first fit, the head is
+    /// taken as bald as well.
+    pub bald_border_fraction: f64,
     /// A point outside the raw surface is pulled in from at most this far.
     pub outside_gate: f64,
     /// The share of the matches kept (the rest, the farthest, are trimmed).
     pub keep: f64,
+    /// The same on a bald head (the second pass): the skin is seen everywhere, and the farthest
+    /// matches are where the head differs most from the template, so none is trimmed.
+    pub bald_keep: f64,
     /// Matches whose raw normal turns from the template's by more than acos of this are left out.
     pub min_cos: f64,
     /// Matches whose offset from the raw point turns from the raw normal by more than acos of this
@@ -83,15 +96,18 @@ impl Default for DeformOptions {
             support: 0.05,
             skin_samples: 4000,
             scalp_samples: 2000,
-            stiffness: vec![1e-3, 3e-4, 1e-4, 3e-5, 1e-5],
+            stiffness: vec![1.0, 0.1, 1e-2, 1e-3, 1e-4, 1e-5],
             steps_per_level: 5,
             affine_weight: 1e-6,
             skin_gate: (0.003, 0.002),
             bald_skin_gate: (0.012, 0.003),
             bald_gate: 0.005,
             bald_fraction: 0.5,
+            border_width: 0.02,
+            bald_border_fraction: 0.4,
             outside_gate: 0.015,
             keep: 0.9,
+            bald_keep: 1.0,
             min_cos: 0.5,
             min_cos_offset: 0.8,
             point_weight: 0.1,
@@ -165,12 +181,13 @@ impl Deformation {
     }
 }
 
-/// A template sample: its place, outward normal, whether it is scalp, and the nodes whose bumps
-/// reach it with their values there.
+/// A template sample: its place, outward normal, whether it is scalp (and on the scalp's border
+/// with the skin), and the nodes whose bumps reach it with their values there.
 struct Sample {
     p: DVec3,
     n: DVec3,
     scalp: bool,
+    border: bool,
     bumps: Vec<(u32, f64)>,
 }
 
@@ -213,6 +230,8 @@ pub struct DeformReport {
     pub scalp_matched: f64,
     /// The share of scalp samples on the raw surface after the first fit ([`DeformOptions::bald_gate`]).
     pub scalp_on_surface: f64,
+    /// The same share of the scalp's border samples ([`DeformOptions::border_width`]).
+    pub border_on_surface: f64,
     /// Whether the scalp was fitted as skin (a bald head).
     pub bald: bool,
     /// The largest displacement of a template sample (m).
@@ -248,13 +267,15 @@ pub fn fit_deformation(
             })
             .collect()
     };
+    let skin_points: Vec<DVec3> = skin.iter().map(|s| s.0).collect();
+    let near_skin = |p: DVec3| skin_points.iter().any(|q| q.distance_squared(p) < opts.border_width.powi(2));
     let samples: Vec<Sample> = skin
-        .into_iter()
-        .map(|s| (s, false))
+        .iter()
+        .map(|&s| (s, false))
         .chain(top.into_iter().map(|s| (s, true)))
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|((p, n), scalp)| Sample { p, n, scalp, bumps: bumps_at(p) })
+        .map(|((p, n), scalp)| Sample { p, n, scalp, border: scalp && near_skin(p), bumps: bumps_at(p) })
         .collect();
     let k = nodes.len();
     let dim = 12 + 3 * k;
@@ -283,15 +304,17 @@ pub fn fit_deformation(
         skin_matched: 0.0,
         scalp_matched: 0.0,
         scalp_on_surface: 0.0,
+        border_on_surface: 0.0,
         bald: false,
         max_displacement: 0.0,
     };
-    let mut scalp_on_surface = 0.0;
+    let (mut scalp_on_surface, mut border_on_surface) = (0.0, 0.0);
     for pass in 0..2 {
         let bald = pass == 1;
         if bald {
-            scalp_on_surface = on_surface_share(&samples, &field, raw, opts);
-            if scalp_on_surface < opts.bald_fraction {
+            scalp_on_surface = on_surface_share(&samples, |s| s.scalp, &field, raw, opts);
+            border_on_surface = on_surface_share(&samples, |s| s.border, &field, raw, opts);
+            if scalp_on_surface < opts.bald_fraction && border_on_surface < opts.bald_border_fraction {
                 break;
             }
         }
@@ -302,7 +325,7 @@ pub fn fit_deformation(
             let gate = g0 + f * (g1 - g0);
             for _ in 0..opts.steps_per_level.max(1) {
                 let matches = match_samples(&samples, &field, raw, gate, bald, opts);
-                let (nm, kept) = trim(&matches, opts.keep);
+                let (nm, kept) = trim(&matches, if bald { opts.bald_keep } else { opts.keep });
                 report = summarise(&samples, &matches, &kept);
                 let Some(solved) = solve(&samples, &matches, &kept, nm, &field, &gram, dim, lambda, opts) else {
                     break;
@@ -313,6 +336,7 @@ pub fn fit_deformation(
         report.bald = bald;
     }
     report.scalp_on_surface = scalp_on_surface;
+    report.border_on_surface = border_on_surface;
     let points: Vec<DVec3> = samples.iter().map(|s| s.p).collect();
     report.max_displacement = field.max_displacement(&points);
     (field, report)
@@ -364,10 +388,11 @@ fn match_samples(
         .collect()
 }
 
-/// The share of the scalp samples within [`DeformOptions::bald_gate`] of the raw surface (either
-/// side, facing the same way) under `field`.
+/// The share of the samples `which` picks within [`DeformOptions::bald_gate`] of the raw surface
+/// (either side, facing the same way) under `field`.
 fn on_surface_share(
     samples: &[Sample],
+    which: impl Fn(&Sample) -> bool + Sync,
     field: &Deformation,
     raw: &(impl Target + ?Sized),
     opts: &DeformOptions,
@@ -375,7 +400,7 @@ fn on_surface_share(
     let normal_map = (DMat3::IDENTITY + field.affine).inverse().transpose();
     let (on, all) = samples
         .par_iter()
-        .filter(|s| s.scalp)
+        .filter(|s| which(s))
         .map(|s| {
             let x = s.p + displacement_of(field, s);
             let n = (normal_map * s.n).normalize_or(s.n);
@@ -427,6 +452,7 @@ fn summarise(samples: &[Sample], matches: &[Option<Pull>], kept: &[bool]) -> Def
         skin_matched: skin_kept as f64 / skin.max(1) as f64,
         scalp_matched: scalp_kept as f64 / scalp.max(1) as f64,
         scalp_on_surface: 0.0,
+        border_on_surface: 0.0,
         bald: false,
         max_displacement: 0.0,
     }
