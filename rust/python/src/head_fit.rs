@@ -79,13 +79,11 @@ fn result_to_py<'py>(py: Python<'py>, f: &CaptureFit, written: Option<Vec<PathBu
     d.set_item("exposed_fraction", f.fit.score.outside)?;
     d.set_item("cost", f.fit.score.cost)?;
     d.set_item("landmarks_rms_mm", f.fit.landmarks_mm)?;
-    match f.fit.landmarks_mm {
-        Some(_) => {
+    match f.fit.landmark_distances() {
+        Some(distances) => {
             let each = PyDict::new(py);
-            for (name, mm) in hairrecon_recon::head_fit::landmarks::NAMES.iter().zip(f.fit.each_landmark_mm) {
-                if let Some(mm) = mm {
-                    each.set_item(name, mm)?;
-                }
+            for (name, mm) in distances {
+                each.set_item(name, mm)?;
             }
             d.set_item("landmarks_mm", each)?;
         }

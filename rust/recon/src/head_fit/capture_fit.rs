@@ -201,8 +201,8 @@ pub fn fit_json(fit: &FitResult) -> serde_json::Value {
         "cost": fit.score.cost,
         "runner_up_cost": fit.runner_up_cost,
         "landmarks_rms_mm": fit.landmarks_mm,
-        "landmarks_mm": fit.landmarks_mm.map(|_| landmarks::NAMES.iter().zip(fit.each_landmark_mm)
-            .filter_map(|(n, d)| Some((n.to_string(), serde_json::json!(d?))))
+        "landmarks_mm": fit.landmark_distances().map(|each| each.into_iter()
+            .map(|(n, d)| (n.to_string(), serde_json::json!(d)))
             .collect::<serde_json::Map<_, _>>()),
         "warning": fit.close_call(),
         "shape": fit.shape.map(|r| serde_json::json!({

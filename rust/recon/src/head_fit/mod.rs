@@ -140,6 +140,13 @@ pub struct FitResult {
 pub const CLOSE_CALL: f64 = 0.03;
 
 impl FitResult {
+    /// With landmarks: each given one's name and distance from the template's after the fit
+    /// (canonical mm), in [`landmarks::NAMES`]' order.
+    pub fn landmark_distances(&self) -> Option<Vec<(&'static str, f64)>> {
+        self.landmarks_mm?;
+        Some(landmarks::NAMES.iter().zip(self.each_landmark_mm).filter_map(|(n, d)| Some((*n, d?))).collect())
+    }
+
     /// A warning when a pose turned more than 30° from the fit's costs within [`CLOSE_CALL`] of it:
     /// the raw mesh then tells the two apart barely, and the fit may have taken the wrong one (the
     /// back of the head for the face, most often).
