@@ -740,7 +740,8 @@ def render_capture(a) -> int:
         # the surface on its outer curls rather than between them, and 1 mm voxels follow them.
         fuse_args += ["--truncation-voxels", "3", "--quantile", "0.3"]
     else:
-        fuse_args += ["--inset-mm", f"{meta['fusion_radius_mm']:.4f}"]
+        # The ribbons widen the hair by their radius, not the skin: the inset stops at the head.
+        fuse_args += ["--inset-mm", f"{meta['fusion_radius_mm']:.4f}", "--inset-above-head"]
     if a.no_fuse or a.only_view is not None:
         print(f"render_synthetic: now run: hairrecon fuse-depth {out} {' '.join(fuse_args)}", flush=True)
         return 0

@@ -39,6 +39,10 @@ pub struct FuseDepthArgs {
     /// than they are, like the synthetic renderer's fusion depth maps).
     #[arg(long, default_value_t = 0.0)]
     pub inset_mm: f32,
+    /// The inset moves no vertex inside the capture's head mesh (head_mesh): the skin, which the
+    /// depth maps draw as it is, stays on the head while the hair comes in.
+    #[arg(long, requires = "inset_mm")]
+    pub inset_above_head: bool,
     /// Fuse each voxel's per-view truncated distances by this quantile (0.5: median) instead of
     /// their mean.
     #[arg(long)]
@@ -94,7 +98,12 @@ pub fn run(args: FuseDepthArgs) -> CmdResult {
     let dir = json.parent().map(PathBuf::from).unwrap_or_default();
     let out = args.out.clone().unwrap_or_else(|| dir.join(&spec.raw_mesh));
     if !args.no_fuse {
-        fuse(&args, &out)?;
+        let floor = match (&spec.head_mesh, args.inset_above_head) {
+            (Some(head), true) => Some(dir.join(head)),
+            (None, true) => return Err("--inset-above-head: the capture names no head_mesh".into()),
+            (_, false) => None,
+        };
+        fuse(&args, &out, floor.as_deref())?;
     }
     if args.check_capture {
         let c = hairrecon_core::capture::Capture::load(&args.capture)?;
@@ -133,7 +142,7 @@ fn check_gt(args: &FuseDepthArgs, mesh: &std::path::Path, gt: &std::path::Path) 
     Ok(())
 }
 
-fn fuse(args: &FuseDepthArgs, out: &std::path::Path) -> CmdResult {
+fn fuse(args: &FuseDepthArgs, out: &std::path::Path, floor: Option<&std::path::Path>) -> CmdResult {
     let t0 = Instant::now();
     let views = raw_mesh::load_depth_views(&args.capture, args.depth_dir.as_deref())?;
     let opts = FuseOptions {
@@ -141,15 +150,21 @@ fn fuse(args: &FuseDepthArgs, out: &std::path::Path) -> CmdResult {
         truncation_voxels: args.truncation_voxels,
         smooth_iterations: args.smooth,
         min_component_triangles: args.min_component,
-        inset: args.inset_mm * 1e-3,
+        // with a floor, the inset is made after fusing, vertex by vertex
+        inset: if floor.is_some() { 0.0 } else { args.inset_mm * 1e-3 },
         quantile: args.quantile,
         ..FuseOptions::default()
     };
     let depth: Vec<_> = views.into_iter().map(|(_, v)| v).collect();
     let bar = crate::progress::bar(1000, "tsdf");
     let progress = BarProgress(bar);
-    let mesh = raw_mesh::fuse_depth_maps(&depth, &opts, &progress)?;
+    let mut mesh = raw_mesh::fuse_depth_maps(&depth, &opts, &progress)?;
     progress.0.finish_and_clear();
+    if let Some(floor) = floor {
+        let head =
+            hairrecon_core::read_mesh(floor).map_err(|e| format!("--inset-above-head: {}: {e}", floor.display()))?;
+        raw_mesh::inset_above(&mut mesh, args.inset_mm * 1e-3, &hairrecon_core::mesh::Bvh::new(head));
+    }
     hairrecon_core::formats::write_mesh(out, &mesh)?;
     let (lo, hi) = mesh.bbox();
     eprintln!(

@@ -18,7 +18,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 use hairrecon_core::capture::CaptureSpec;
+use hairrecon_core::mesh::Bvh;
 use hairrecon_core::{Camera, TriMesh};
+use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::progress::{Cancelled, Progress};
@@ -197,17 +199,31 @@ pub fn fuse_depth_maps(views: &[DepthView], opts: &FuseOptions, progress: &dyn P
     Ok(TriMesh { normals: Some(normals), ..mesh })
 }
 
+/// Moves each vertex of `mesh` inward (against its normal) by `inset`, but never below `floor`: by
+/// at most the vertex's signed distance outside it. The synthetic renderer fuses its strands as
+/// ribbons wider than they are, so the hair's surface lies `inset` too far out; the skin in the
+/// same depth maps is drawn as it is. With the true head as the floor, the hair comes back in and
+/// the skin stays where the head is, as on a photogrammetry mesh. Normals are recomputed.
+pub fn inset_above(mesh: &mut TriMesh, inset: f32, floor: &Bvh) {
+    if !(inset.is_finite() && inset > 0.0) {
+        return;
+    }
+    let normals = mesh.normals.take().unwrap_or_else(|| mesh.compute_vertex_normals());
+    mesh.vertices.par_iter_mut().zip(normals.par_iter()).for_each(|(v, n)| {
+        // farther than the inset outside the floor (or no floor within reach): the whole inset
+        let outside = floor.signed_distance(*v, 2.0 * inset).unwrap_or(inset);
+        *v -= outside.clamp(0.0, inset) * *n;
+    });
+    mesh.normals = Some(mesh.compute_vertex_normals());
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::progress::NoProgress;
 
-    /// Renders the exact depth of a sphere (radius 0.1 m at the origin) into cameras around it,
-    /// fuses, and checks that every vertex of the result lies within half a voxel of the sphere
-    /// and that the mesh covers it (its area is within 3% of 4πr²).
-    #[test]
-    fn depth_maps_of_a_sphere_fuse_to_the_sphere() {
-        let r = 0.1f32;
+    /// Exact depth maps of a sphere of radius `r` at the origin, from 8 cameras around it.
+    fn sphere_views(r: f32) -> Vec<DepthView> {
         let mut views = Vec::new();
         for (i, dir) in
             [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z, Vec3::ONE, -Vec3::ONE].into_iter().enumerate()
@@ -230,6 +246,16 @@ mod tests {
             }
             views.push(DepthView { camera: cam, depth });
         }
+        views
+    }
+
+    /// Renders the exact depth of a sphere (radius 0.1 m at the origin) into cameras around it,
+    /// fuses, and checks that every vertex of the result lies within half a voxel of the sphere
+    /// and that the mesh covers it (its area is within 3% of 4πr²).
+    #[test]
+    fn depth_maps_of_a_sphere_fuse_to_the_sphere() {
+        let r = 0.1f32;
+        let views = sphere_views(r);
         let opts = FuseOptions { voxel: 0.005, ..FuseOptions::default() };
         let mesh = fuse_depth_maps(&views, &opts, &NoProgress).unwrap();
         let errs: Vec<f32> = mesh.vertices.iter().map(|p| (p.length() - r).abs()).collect();
@@ -252,5 +278,33 @@ mod tests {
         let mean =
             mesh.vertices.iter().map(|p| (p.length() - (r - 0.01)).abs()).sum::<f32>() / mesh.vertices.len() as f32;
         assert!(mean < 0.15 * opts.voxel, "mean distance to the inset sphere {mean}");
+    }
+
+    /// With half the sphere as the floor (its lower half: the skin), an inset of 1 cm moves the
+    /// upper half in to the sphere of radius 9 cm and leaves the lower half on the sphere.
+    #[test]
+    fn the_inset_stops_at_the_floor() {
+        let r = 0.1f32;
+        let views = sphere_views(r);
+        let opts = FuseOptions { voxel: 0.005, ..FuseOptions::default() };
+        let fused = fuse_depth_maps(&views, &opts, &NoProgress).unwrap();
+        let lower: Vec<[u32; 3]> =
+            fused.triangles.iter().copied().filter(|t| t.iter().all(|&i| fused.vertices[i as usize].z < 0.0)).collect();
+        let floor = Bvh::new(TriMesh::new(fused.vertices.clone(), lower, None, None).unwrap());
+        let mut mesh = fused.clone();
+        inset_above(&mut mesh, 0.01, &floor);
+        let mean_radius = |keep: &dyn Fn(Vec3) -> bool| {
+            let (sum, n) = mesh
+                .vertices
+                .iter()
+                .zip(&fused.vertices)
+                .filter(|(_, p)| keep(**p))
+                .fold((0.0, 0usize), |(s, n), (p, _)| (s + p.length(), n + 1));
+            sum / n as f32
+        };
+        let up = mean_radius(&|p: Vec3| p.z > 0.03);
+        let down = mean_radius(&|p: Vec3| p.z < -0.01);
+        assert!((up - (r - 0.01)).abs() < 0.15 * opts.voxel, "upper half's mean radius {up}");
+        assert!((down - r).abs() < 0.15 * opts.voxel, "lower half's mean radius {down}");
     }
 }
