@@ -210,10 +210,16 @@ pub fn process_cpu_seconds() -> Option<f64> {
     Some((utime + stime) as f64 / 100.0)
 }
 
-/// The process's peak resident memory so far in bytes (Linux `VmHWM`; `None` elsewhere).
+/// The process's peak resident memory so far in bytes (Linux `VmHWM`; `None` elsewhere), never
+/// less than an earlier call returned. The kernel reports `VmHWM` as the larger of a recorded
+/// high-water mark and the current resident size, whose per-CPU counters lag, so two readings can
+/// fall by a megabyte (a run's report once read 105 then 104 MiB for consecutive stages).
 pub fn peak_rss_bytes() -> Option<u64> {
+    static MAX_SEEN: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    let bytes = kb * 1024;
+    let earlier = MAX_SEEN.fetch_max(bytes, std::sync::atomic::Ordering::Relaxed);
+    Some(bytes.max(earlier))
 }
